@@ -1,0 +1,84 @@
+"""File formats: read any supported file into a Motion / MarkerMotion, write one back.
+
+The format is chosen from the file extension. Readers never know codecs.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+from ..errors import FormatError, MocapzError
+from ..motion import AnyMotion, MarkerMotion, Motion
+
+SKELETAL_EXTENSIONS = (".bvh", ".amc")
+MARKER_EXTENSIONS = (".c3d", ".trc")
+MOTION_EXTENSIONS = SKELETAL_EXTENSIONS + MARKER_EXTENSIONS
+
+
+def load(path: str | os.PathLike[str], asf: str | os.PathLike[str] | None = None) -> AnyMotion:
+    """Read a motion file (``.bvh``, ``.amc`` with its ``.asf``, ``.c3d``, ``.trc``).
+
+    For ``.amc`` the skeleton file is ``asf`` if given, else the ``.asf`` beside the AMC with the same
+    stem, else the only ``.asf`` in that folder whose name starts the AMC's name (CMU ``01.asf`` for
+    ``01_01.amc``).
+    """
+    p = Path(path)
+    ext = p.suffix.lower()
+    if not p.exists():
+        raise FormatError(p, "no such file")
+    if ext == ".bvh":
+        from .bvh import read_bvh
+
+        return read_bvh(p)
+    if ext == ".amc":
+        from .asfamc import read_asfamc
+
+        return read_asfamc(p, asf)
+    if ext == ".asf":
+        raise FormatError(p, "an .asf holds only a skeleton; give the .amc motion file")
+    if ext == ".c3d":
+        from .c3d import read_c3d
+
+        return read_c3d(p)
+    if ext == ".trc":
+        from .trc import read_trc
+
+        return read_trc(p)
+    raise FormatError(p, f"unknown motion file extension {ext!r} (expected one of {', '.join(MOTION_EXTENSIONS)})")
+
+
+def save(motion: AnyMotion, path: str | os.PathLike[str], force: bool = False) -> list[Path]:
+    """Write a motion to ``path`` in the format its extension names; return the files written.
+
+    Skeletal motions go to ``.bvh`` / ``.amc`` (an ``.amc`` also writes its ``.asf`` beside it), marker
+    motions to ``.c3d`` / ``.trc``. Existing files are kept unless ``force``; writes are atomic.
+    """
+    p = Path(path)
+    ext = p.suffix.lower()
+    if ext not in MOTION_EXTENSIONS:
+        raise MocapzError(f"{p}: unknown output extension {ext!r} (expected one of {', '.join(MOTION_EXTENSIONS)})")
+    if isinstance(motion, Motion):
+        if ext == ".bvh":
+            from .bvh import write_bvh
+
+            write_bvh(motion, p, force=force)
+            return [p]
+        if ext == ".amc":
+            from .asfamc import write_asfamc
+
+            return write_asfamc(motion, p, force=force)
+        raise MocapzError(f"{p}: skeletal motion can be written as .bvh or .amc, not {ext}")
+    if isinstance(motion, MarkerMotion):
+        if ext == ".c3d":
+            from .c3d import write_c3d
+
+            write_c3d(motion, p, force=force)
+            return [p]
+        if ext == ".trc":
+            from .trc import write_trc
+
+            write_trc(motion, p, force=force)
+            return [p]
+        raise MocapzError(f"{p}: marker data can be written as .c3d or .trc, not {ext}")
+    raise TypeError(f"not a motion: {type(motion).__name__}")

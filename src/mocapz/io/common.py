@@ -1,0 +1,119 @@
+"""Helpers shared by the format readers and writers: decimal detection, safe output, unit guesses."""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import FormatError, MocapzError
+
+CMU_UNIT_CM = 2.54 / 0.45  # CMU ASF "length 0.45": 1 unit = 1/0.45 inch = 5.644 cm
+
+
+def detect_decimals(values: np.ndarray, max_decimals: int = 9) -> np.ndarray | None:
+    """Smallest decimal count per column that represents every value exactly.
+
+    Args:
+        values: ``(rows, columns)`` float64 parsed from decimal text.
+
+    Returns:
+        ``(columns,)`` int64, or ``None`` if some column needs more than ``max_decimals`` (then the
+        values are kept as float64).
+    """
+    values = np.asarray(values, dtype=np.float64)
+    if values.ndim == 1:
+        values = values[:, None]
+    out = np.full(values.shape[1], -1, dtype=np.int64)
+    todo = np.ones(values.shape[1], dtype=bool)
+    for d in range(max_decimals + 1):
+        if not todo.any():
+            break
+        v = values[:, todo] * (10.0**d)
+        if np.abs(v).max(initial=0.0) >= 2**52:
+            break
+        ok = np.all(np.abs(v - np.round(v)) <= 1e-7 + 1e-12 * np.abs(v), axis=0)
+        idx = np.flatnonzero(todo)[ok]
+        out[idx] = d
+        todo[idx] = False
+    if todo.any():
+        return None
+    return out
+
+
+def guess_unit_cm(height: float) -> tuple[float | None, str]:
+    """Guess centimetres per unit from a standing skeleton's height in file units."""
+    for lo, hi, cm, name in (
+        (1.0, 2.5, 100.0, "metres"),
+        (100.0, 250.0, 1.0, "centimetres"),
+        (1000.0, 2500.0, 0.1, "millimetres"),
+        (18.0, 45.0, CMU_UNIT_CM, "CMU units (inch/0.45)"),
+    ):
+        if lo <= height <= hi:
+            return cm, f"guessed from skeleton height {height:.3g}: {name}"
+    return None, f"unknown (skeleton height {height:.3g} in file units)"
+
+
+def atomic_write(path: str | os.PathLike[str], write: Callable[[Path], None], force: bool = False) -> None:
+    """Write a file through a temporary file in the same folder, then rename it into place.
+
+    ``write`` receives the temporary path. An existing ``path`` is kept unless ``force``; on any error
+    the temporary file is removed, so no partial output is ever left behind.
+    """
+    path = Path(path)
+    if path.exists() and not force:
+        raise MocapzError(f"{path}: output exists (use -f / force=True to overwrite)")
+    if not path.parent.exists():
+        raise MocapzError(f"{path}: output folder {path.parent} does not exist")
+    fd, tmp_name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=path.suffix + ".tmp", dir=path.parent)
+    os.close(fd)
+    tmp = Path(tmp_name)
+    try:
+        write(tmp)
+        os.replace(tmp, path)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
+
+
+def read_text(path: str | os.PathLike[str]) -> str:
+    """Read a text file, raising :class:`FormatError` for missing, empty or non-text files."""
+    p = Path(path)
+    if not p.exists():
+        raise FormatError(p, "no such file")
+    if p.is_dir():
+        raise FormatError(p, "is a folder, not a file")
+    data = p.read_bytes()
+    if not data.strip():
+        raise FormatError(p, "file is empty")
+    if b"\x00" in data[:4096]:
+        raise FormatError(p, "binary data where a text file was expected")
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError:
+        return data.decode("latin-1")
+
+
+def format_rows(values: np.ndarray, decimals: np.ndarray | int | None, sep: str = " ") -> str:
+    """Format a ``(rows, columns)`` array as text lines with fixed decimals per column.
+
+    ``decimals=None`` writes the shortest text that reads back to the same float64 (``repr``).
+    """
+    values = np.asarray(values, dtype=np.float64)
+    if decimals is None:
+        return "\n".join(sep.join(map(repr, row)) for row in values.tolist()) + "\n"
+    cols = values.shape[1]
+    dec = np.broadcast_to(np.asarray(decimals, dtype=np.int64), (cols,))
+    fmt = sep.join(f"%.{int(d)}f" for d in dec)
+    # Avoid "-0.000" noise from values that round to zero.
+    rounded = np.where(np.abs(values) < 0.5 * 10.0 ** (-dec.astype(float)), 0.0, values)
+    return "\n".join(fmt % tuple(row) for row in rounded.tolist()) + "\n"
+
+
+def snap_rate(rate: float) -> float:
+    """Round a frame rate computed from a rounded frame time (1/0.0083333) to the nearest integer."""
+    r = round(rate)
+    return float(r) if r > 0 and abs(rate - r) < 1e-3 * r else float(rate)
