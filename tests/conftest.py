@@ -1,0 +1,22 @@
+"""Shared test fixtures: the real motion-capture data in ../shared/data (never copied into the repo)."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import pytest
+
+DATA = Path(os.environ.get("MOCAPZ_DATA", Path(__file__).resolve().parents[1].parent / "shared" / "data"))
+
+
+def data_path(rel: str) -> Path:
+    p = DATA / rel
+    if not p.exists():
+        pytest.fail(f"shared data file missing: {p} (tests need ../shared/data beside the checkout)")
+    return p
+
+
+@pytest.fixture
+def data() -> Path:
+    return DATA
