@@ -1,0 +1,56 @@
+"""The small public API: ``compress(motion, **options) -> bytes`` and ``decompress(bytes) -> motion``."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+from .codecs import get_codec
+from .container import Container
+from .errors import FormatError, OptionError
+from .layout import decode_layout, encode_layout
+from .motion import AnyMotion, Motion
+
+
+def compress(motion: AnyMotion, codec: str = "lossless", **options: Any) -> bytes:
+    """Compress a motion into the bytes of a ``.mcz`` file.
+
+    Args:
+        motion: a :class:`~mocapz.Motion` or :class:`~mocapz.MarkerMotion`.
+        codec: ``"lossless"``, ``"pga"`` (skeletal) or ``"patterns"``.
+        **options: codec options (see ``mocapz compress --help``).
+    """
+    info = get_codec(codec)
+    kind = "skeleton" if isinstance(motion, Motion) else "markers"
+    if kind not in info.kinds:
+        raise OptionError(f"codec {codec!r} does not handle {kind} data")
+    sections = info.encode(motion, **options)
+    return Container(info.name, info.version, encode_layout(motion), sections).to_bytes()
+
+
+def read_container(data: bytes, path: str | Path | None = None) -> tuple[Container, dict[str, Any]]:
+    """Parse container bytes and their layout header (errors name ``path``)."""
+    box = Container.from_bytes(data, path)
+    try:
+        layout = decode_layout(box.layout)
+    except FormatError as exc:
+        raise FormatError(path, exc.problem) from None
+    return box, layout
+
+
+def decompress(data: bytes, path: str | Path | None = None) -> AnyMotion:
+    """Decode the bytes of a ``.mcz`` file back into a motion."""
+    box, layout = read_container(data, path)
+    try:
+        info = get_codec(box.codec)
+    except OptionError:
+        raise FormatError(path, f"written by unknown codec {box.codec!r}") from None
+    if box.codec_version != info.version:
+        raise FormatError(path, f"codec {box.codec!r} version {box.codec_version} is not supported "
+                                f"(this mocapz has version {info.version})")
+    try:
+        return info.decode(box.sections, layout)
+    except FormatError as exc:
+        raise FormatError(path, exc.problem) from None
+    except (ValueError, IndexError, KeyError, TypeError) as exc:
+        raise FormatError(path, f"corrupted {box.codec} payload ({type(exc).__name__}: {exc})") from None

@@ -1,0 +1,24 @@
+"""Lossless codec: exact values back, at the source's precision.
+
+Values are turned into integers (the file's decimals, or the float bit patterns when the decimals are
+unknown), predicted from the two previous frames (second differences) and from the channels of the same
+joint already coded in the frame (integer linear prediction), and the residuals are range coded with
+block-adaptive Laplace models (:mod:`mocapz.entropy`).
+"""
+
+from __future__ import annotations
+
+from .. import CodecInfo
+from .decode import decode
+from .encode import encode
+
+VERSION = 1
+
+INFO = CodecInfo(
+    name="lossless",
+    version=VERSION,
+    kinds=("skeleton", "markers"),
+    encode=encode,
+    decode=decode,
+    options={},
+)

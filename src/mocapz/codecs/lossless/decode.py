@@ -1,0 +1,82 @@
+"""Lossless decoder."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from ...entropy import decode_int_matrix, unpack_uint64, unzigzag
+from ...errors import FormatError
+from ...layout import empty_motion
+from .integers import REP_DECIMAL, from_integers
+from .predict import cross_term, predictor_columns
+
+
+def _groups(layout: dict[str, Any]) -> tuple[int, list[list[int]]]:
+    if layout["kind"] == "skeleton":
+        groups, start = [], 0
+        for s in layout["channels"]:
+            n = len(s) // 4
+            groups.append(list(range(start, start + n)))
+            start += n
+        return start, groups
+    m = len(layout["labels"])
+    return 3 * m, [[3 * i, 3 * i + 1, 3 * i + 2] for i in range(m)]
+
+
+def decode(sections: dict[str, bytes], layout: dict[str, Any]) -> Any:
+    """Decode lossless sections back into the exact motion."""
+    frames = int(layout["frames"])
+    cols, groups = _groups(layout)
+    try:
+        rep = sections["rep"][0]
+        x = _decode_ints(sections, frames, cols, groups)
+    except KeyError as exc:
+        raise FormatError(None, f"corrupted lossless stream (missing section {exc})") from None
+    decimals = None
+    if rep == REP_DECIMAL:
+        dec = layout.get("decimals")
+        if dec is None:
+            raise FormatError(None, "corrupted lossless stream (decimals missing)")
+        decimals = np.broadcast_to(np.asarray(dec, dtype=np.int64), (cols,))
+    values = from_integers(rep, x, decimals)
+    if "gaps" in sections:
+        bits = unpack_uint64(sections["gaps"]).astype(np.uint8)
+        gaps = np.unpackbits(bits)[: frames * cols].astype(bool).reshape(frames, cols)
+        values = np.where(gaps, np.nan, values)
+    if layout["kind"] == "markers":
+        values = values.reshape(frames, -1, 3)
+    return empty_motion(layout, values)
+
+
+def _decode_ints(sections: dict[str, bytes], frames: int, cols: int, groups: list[list[int]]) -> np.ndarray:
+    x = np.zeros((frames, cols), dtype=np.int64)
+    if frames == 0:
+        return x
+    const = np.unpackbits(unpack_uint64(sections["const"]).astype(np.uint8))[:cols].astype(bool)
+    head = unzigzag(unpack_uint64(sections["head"]))
+    active = np.flatnonzero(~const)
+    if head.size != cols + (active.size if frames > 1 else 0):
+        raise FormatError(None, "corrupted lossless stream (head size)")
+    x[:] = head[:cols]
+    if frames == 1:
+        return x
+    d1 = head[cols:]
+    if frames == 2 or active.size == 0:
+        x[1, active] += d1
+        return x
+    order = predictor_columns([[c for c in g if not const[c]] for g in groups if any(not const[c] for c in g)])
+    residual = decode_int_matrix(sections["res"])
+    coefs = unzigzag(unpack_uint64(sections["coef"]))
+    if residual.shape != (frames - 2, len(order)) or coefs.size != sum(len(p) for _, p in order):
+        raise FormatError(None, "corrupted lossless stream (residual shape)")
+    d2 = np.zeros((frames - 2, cols), dtype=np.int64)
+    pos = 0
+    for k, (c, preds) in enumerate(order):
+        coef = coefs[pos : pos + len(preds)]
+        pos += len(preds)
+        d2[:, c] = residual[:, k] + cross_term(d2, preds, coef)
+    slopes = np.concatenate([d1[None, :], d1[None, :] + np.cumsum(d2[:, active], axis=0)], axis=0)
+    x[1:, active] = x[0, active] + np.cumsum(slopes, axis=0)
+    return x

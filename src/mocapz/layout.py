@@ -1,0 +1,165 @@
+"""Compact serialisation of a motion's layout (skeleton or marker set, rate, names) for the container.
+
+The layout is JSON compressed with zstd and a built-in dictionary of common joint and marker names, so
+that a 31-joint CMU skeleton costs a few hundred bytes and short clips are not swamped by headers.
+Offsets are stored as decimal text at their own precision, so they come back bit-exactly.
+"""
+
+from __future__ import annotations
+
+import json
+from typing import Any
+
+import numpy as np
+import zstandard
+
+from .errors import FormatError
+from .motion import AnyMotion, MarkerMotion, Motion
+from .skeleton import Skeleton
+
+_DICT_TEXT = (
+    '{"kind":"skeleton","names":["Hips","LHipJoint","LeftUpLeg","LeftLeg","LeftFoot","LeftToeBase",'
+    '"RHipJoint","RightUpLeg","RightLeg","RightFoot","RightToeBase","LowerBack","Spine","Spine1","Neck",'
+    '"Neck1","Head","LeftShoulder","LeftArm","LeftForeArm","LeftHand","LeftFingerBase","LeftHandIndex1",'
+    '"LThumb","RightShoulder","RightArm","RightForeArm","RightHand","RightFingerBase","RightHandIndex1",'
+    '"RThumb"],"parents":[-1,0,1,2,3,4,0,6,7,8,9,0,11,12,13,14,15,13,17,18,19,20,21,20,13,24,25,26,27,'
+    '28,27],"channels":["XposYposZposZrotYrotXrot","ZrotYrotXrot","XrotYrotZrot","ZrotXrotYrot"],'
+    '"root","lhipjoint","lfemur","ltibia","lfoot","ltoes","rhipjoint","rfemur","rtibia","rfoot","rtoes",'
+    '"lowerback","upperback","thorax","lowerneck","upperneck","head","lclavicle","lhumerus","lradius",'
+    '"lwrist","lhand","lfingers","lthumb","rclavicle","rhumerus","rradius","rwrist","rhand","rfingers",'
+    '"rthumb","Chest","Chest2","Collar","UpArm","LowArm","UpLeg","LowLeg","Toe","_End",'
+    '"LFHD","RFHD","LBHD","RBHD","C7","T10","CLAV","STRN","RBAC","LSHO","LUPA","LELB","LFRM","LWRA","LWRB",'
+    '"LFIN","RSHO","RUPA","RELB","RFRM","RWRA","RWRB","RFIN","LFWT","RFWT","LBWT","RBWT","LTHI","LKNE",'
+    '"LSHN","LANK","LHEE","LTOE","LMT5","RTHI","RKNE","RSHN","RANK","RHEE","RTOE","RMT5",'
+    '"offsets":[[0,0,0],"end_sites":[[5,[0,-0,1.09718],"angle_unit":"deg","unit_cm":5.644444444444445,'
+    '"unit_note":"CMU skeleton: 1 unit = 2.54/0.45 cm","frame_rate":120.0,"source_format":"bvh",'
+    '"decimals":[4,4,4,4,4,4,0,0,0,"kind":"markers","labels":[,"units":"mm","metadata":{"frame_time":'
+    '0.0083333,"file_bytes":'
+)
+_DICT = zstandard.ZstdCompressionDict(_DICT_TEXT.encode(), dict_type=zstandard.DICT_TYPE_RAWCONTENT)
+
+_SHORT = {"Xposition": "Xpos", "Yposition": "Ypos", "Zposition": "Zpos",
+          "Xrotation": "Xrot", "Yrotation": "Yrot", "Zrotation": "Zrot"}
+_LONG = {v: k for k, v in _SHORT.items()}
+
+# metadata keys carried through compression (a writer may need them)
+_KEEP_META = ("frame_time", "file_bytes", "first_frame", "c3d_first_frame", "trc_header", "amc_header")
+
+
+def _num(v: float) -> float | int:
+    f = float(v)
+    return int(f) if f.is_integer() and abs(f) < 2**53 and not (f == 0 and np.signbit(f)) else f
+
+
+def skeleton_to_dict(sk: Skeleton) -> dict[str, Any]:
+    d: dict[str, Any] = {
+        "names": sk.names,
+        "parents": sk.parents.tolist(),
+        "channels": ["".join(_SHORT[c] for c in chs) for chs in sk.channels],
+        "orders": sk.rotation_order,
+        "offsets": [[_num(v) for v in row] for row in sk.offsets],
+        "end_sites": [[int(j), [_num(v) for v in off], n] for j, off, n in sk.end_sites],
+        "angle_unit": sk.angle_unit,
+        "unit_cm": sk.unit_cm,
+        "unit_note": sk.unit_note,
+    }
+    if not sk.has_identity_axes():
+        assert sk.axis is not None
+        d["axis"] = sk.axis.reshape(-1).tolist()
+    if sk.extra:
+        d["extra"] = sk.extra
+    return d
+
+
+def skeleton_from_dict(d: dict[str, Any]) -> Skeleton:
+    chs = [tuple(_LONG[s[i : i + 4]] for i in range(0, len(s), 4)) for s in d["channels"]]
+    n = len(d["names"])
+    axis = np.asarray(d["axis"], dtype=np.float64).reshape(n, 3, 3) if "axis" in d else None
+    return Skeleton(
+        names=list(d["names"]),
+        parents=np.asarray(d["parents"], dtype=np.int64),
+        offsets=np.asarray(d["offsets"], dtype=np.float64).reshape(n, 3),
+        channels=chs,
+        rotation_order=list(d["orders"]),
+        axis=axis,
+        end_sites=[(int(j), np.asarray(off, dtype=np.float64), str(name)) for j, off, name in d["end_sites"]],
+        angle_unit=d["angle_unit"],
+        unit_cm=d["unit_cm"],
+        unit_note=d["unit_note"],
+        extra=d.get("extra", {}),
+    )
+
+
+def layout_dict(motion: AnyMotion) -> dict[str, Any]:
+    """Everything about a motion except its sample values."""
+    meta = {k: motion.metadata[k] for k in _KEEP_META if k in motion.metadata}
+    if isinstance(motion, Motion):
+        return {
+            "kind": "skeleton",
+            **skeleton_to_dict(motion.skeleton),
+            "frames": motion.n_frames,
+            "frame_rate": motion.frame_rate,
+            "name": motion.name,
+            "source_format": motion.source_format,
+            "decimals": None if motion.decimals is None else motion.decimals.tolist(),
+            "metadata": meta,
+        }
+    return {
+        "kind": "markers",
+        "labels": motion.labels,
+        "units": motion.units,
+        "frames": motion.n_frames,
+        "frame_rate": motion.frame_rate,
+        "name": motion.name,
+        "source_format": motion.source_format,
+        "decimals": motion.decimals,
+        "metadata": meta,
+    }
+
+
+def encode_layout(motion: AnyMotion) -> bytes:
+    text = json.dumps(layout_dict(motion), separators=(",", ":"), sort_keys=False).encode()
+    return zstandard.ZstdCompressor(level=19, dict_data=_DICT, write_checksum=False,
+                                    write_content_size=True, write_dict_id=False).compress(text)
+
+
+def decode_layout(data: bytes) -> dict[str, Any]:
+    try:
+        text = zstandard.ZstdDecompressor(dict_data=_DICT).decompress(data, max_output_size=1 << 26)
+        d = json.loads(text)
+    except (zstandard.ZstdError, ValueError, UnicodeDecodeError) as exc:
+        raise FormatError(None, f"corrupted layout header ({exc})") from None
+    if not isinstance(d, dict) or d.get("kind") not in ("skeleton", "markers"):
+        raise FormatError(None, "corrupted layout header (unknown kind)")
+    return d
+
+
+def empty_motion(layout: dict[str, Any], values: np.ndarray) -> AnyMotion:
+    """Build a Motion / MarkerMotion from a layout and decoded values.
+
+    ``values`` is ``(frames, channels)`` for skeletons, ``(frames, markers, 3)`` for markers.
+    """
+    try:
+        if layout["kind"] == "skeleton":
+            dec = layout.get("decimals")
+            return Motion(
+                skeleton=skeleton_from_dict(layout),
+                channels=values,
+                frame_rate=float(layout["frame_rate"]),
+                name=layout["name"],
+                source_format=layout["source_format"],
+                decimals=None if dec is None else np.asarray(dec, dtype=np.int64),
+                metadata=dict(layout.get("metadata", {})),
+            )
+        return MarkerMotion(
+            labels=list(layout["labels"]),
+            positions=values,
+            frame_rate=float(layout["frame_rate"]),
+            units=layout["units"],
+            name=layout["name"],
+            source_format=layout["source_format"],
+            decimals=layout.get("decimals"),
+            metadata=dict(layout.get("metadata", {})),
+        )
+    except (KeyError, TypeError, ValueError) as exc:
+        raise FormatError(None, f"corrupted layout header ({exc})") from None
