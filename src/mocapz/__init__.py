@@ -1,0 +1,25 @@
+"""mocapz: compression of human motion-capture data.
+
+>>> import mocapz
+>>> motion = mocapz.load("walk.bvh")
+>>> data = mocapz.compress(motion, codec="lossless")
+>>> back = mocapz.decompress(data)
+>>> mocapz.evaluate(motion, back).distortion_pct
+0.0
+"""
+
+from __future__ import annotations
+
+__version__ = "0.1.0"
+
+from .api import compress, decompress  # noqa: E402
+from .errors import FormatError, MocapzError, OptionError, TargetError  # noqa: E402
+from .io import load, save  # noqa: E402
+from .metrics import evaluate  # noqa: E402
+from .motion import MarkerMotion, Motion  # noqa: E402
+from .skeleton import Skeleton  # noqa: E402
+
+__all__ = [
+    "FormatError", "MarkerMotion", "MocapzError", "Motion", "OptionError", "Skeleton", "TargetError",
+    "__version__", "compress", "decompress", "evaluate", "load", "save",
+]

@@ -59,3 +59,19 @@ def _lossless() -> CodecInfo:
 
 
 register("lossless", _lossless)
+
+
+def _pga() -> CodecInfo:
+    from .pga import INFO
+
+    return INFO
+
+
+def _patterns() -> CodecInfo:
+    from .patterns import INFO
+
+    return INFO
+
+
+register("pga", _pga)
+register("patterns", _patterns)

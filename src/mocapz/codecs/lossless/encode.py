@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from ...entropy import encode_int_matrix, pack_uint64, zigzag
-from ...motion import AnyMotion, MarkerMotion, Motion
+from ...motion import AnyMotion, Motion
 from .integers import to_integers
 from .predict import cross_term, fit_coef, predictor_columns
 

@@ -1,0 +1,54 @@
+"""``mocapz info``: describe a motion file, a .mcz file or a .mczdb library."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+from .errors import FormatError
+from .motion import Motion
+
+
+def describe_motion(motion: Any) -> dict[str, Any]:
+    d: dict[str, Any] = {"name": motion.name, "format": motion.source_format, "frames": motion.n_frames,
+                         "frame_rate": motion.frame_rate, "duration_s": motion.duration,
+                         "raw_bytes": motion.raw_bytes}
+    if isinstance(motion, Motion):
+        sk = motion.skeleton
+        d.update(joints=sk.n_joints, end_sites=len(sk.end_sites), channels=sk.n_channels,
+                 unit_cm=sk.unit_cm, unit_note=sk.unit_note, angle_unit=sk.angle_unit,
+                 root=sk.names[0], joint_names=sk.names)
+    else:
+        d.update(markers=motion.n_markers, units=motion.units, unit_cm=motion.unit_cm,
+                 missing_pct=100.0 * float(motion.missing.mean()) if motion.positions.size else 0.0,
+                 labels=motion.labels)
+    return d
+
+
+def describe(path: Path) -> dict[str, Any]:
+    if not path.exists():
+        raise FormatError(path, "no such file")
+    suffix = path.suffix.lower()
+    if suffix == ".mczdb":
+        from .library import describe_library
+
+        return describe_library(path)
+    if suffix == ".mcz":
+        from .api import decompress, read_container
+
+        data = path.read_bytes()
+        box, layout = read_container(data, path)
+        d = {"file": str(path), "container_bytes": len(data), "codec": box.codec,
+             "codec_version": box.codec_version,
+             "sections": [f"{k}={len(v)}B" for k, v in box.sections.items()],
+             "layout_bytes": len(box.layout)}
+        motion = decompress(data, path)
+        d.update(describe_motion(motion))
+        d["ratio"] = motion.raw_bytes / len(data)
+        return d
+    from .io import load
+
+    motion = load(path)
+    d = {"file": str(path), "file_bytes": path.stat().st_size}
+    d.update(describe_motion(motion))
+    return d

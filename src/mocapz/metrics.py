@@ -1,0 +1,232 @@
+"""The error and size figures of ``../shared/METRICS.md``, for skeletal and marker data.
+
+Errors are measured on global 3D positions: for skeletons, every joint and end site computed by forward
+kinematics with the ORIGINAL skeleton from the original and the decoded channels; for markers, the marker
+positions, leaving out samples missing in the original.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+
+import numpy as np
+
+from .errors import MocapzError
+from .motion import AnyMotion, MarkerMotion, Motion
+
+
+@dataclass
+class ErrorReport:
+    """Error figures. Lengths in the file's unit; ``*_cm`` in centimetres where the unit is known."""
+
+    distortion_pct: float
+    arms: float
+    max_err: float
+    p99_err: float
+    bone_len_err: float
+    foot_skate: float | None
+    unit_cm: float | None
+    frames: int
+    points: int
+
+    def _cm(self, v: float | None) -> float | None:
+        return None if v is None or self.unit_cm is None else v * self.unit_cm
+
+    @property
+    def arms_cm(self) -> float | None:
+        return self._cm(self.arms)
+
+    @property
+    def max_err_cm(self) -> float | None:
+        return self._cm(self.max_err)
+
+    @property
+    def p99_err_cm(self) -> float | None:
+        return self._cm(self.p99_err)
+
+    def as_dict(self) -> dict[str, float | int | None]:
+        d = asdict(self)
+        d.update(arms_cm=self.arms_cm, max_err_cm=self.max_err_cm, p99_err_cm=self.p99_err_cm,
+                 foot_skate_cm_per_s=self._cm(self.foot_skate))
+        return d
+
+
+def positions_pair(original: AnyMotion, decoded: AnyMotion) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Original and decoded positions ``(frames, points, 3)`` and a validity mask ``(frames, points)``."""
+    if isinstance(original, Motion) and isinstance(decoded, Motion):
+        if decoded.channels.shape != original.channels.shape:
+            raise MocapzError(
+                f"decoded motion has shape {decoded.channels.shape}, original {original.channels.shape}"
+            )
+        from .kinematics import forward_kinematics
+
+        a = forward_kinematics(original.skeleton, original.channels)[0]
+        b = forward_kinematics(original.skeleton, decoded.channels)[0]
+        return a, b, np.ones(a.shape[:2], dtype=bool)
+    if isinstance(original, MarkerMotion) and isinstance(decoded, MarkerMotion):
+        if decoded.positions.shape != original.positions.shape:
+            raise MocapzError(
+                f"decoded markers have shape {decoded.positions.shape}, original {original.positions.shape}"
+            )
+        valid = ~original.missing
+        return original.positions, decoded.positions, valid
+    raise MocapzError("cannot compare skeletal data with marker data")
+
+
+def distortion_pct(a: np.ndarray, b: np.ndarray, valid: np.ndarray | None = None) -> float:
+    """Karni-Gotsman ``100 ||A - B||_F / ||A - E(A)||_F`` with ``E(A)`` the per-point temporal mean."""
+    if valid is None:
+        valid = np.ones(a.shape[:2], dtype=bool)
+    w = valid[..., None]
+    a0 = np.where(w, a, 0.0)
+    b0 = np.where(w, b, 0.0)
+    counts = np.maximum(valid.sum(axis=0), 1)[:, None]
+    mean = a0.sum(axis=0) / counts
+    den = np.sqrt((np.where(w, a0 - mean, 0.0) ** 2).sum())
+    num = np.sqrt(((a0 - b0) ** 2).sum())
+    return float(100.0 * num / den) if den > 0 else (0.0 if num == 0 else float("inf"))
+
+
+def point_errors(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Euclidean error per frame and point, ``(frames, points)``."""
+    return np.linalg.norm(a - b, axis=-1)
+
+
+def arms(err: np.ndarray, valid: np.ndarray) -> float:
+    """Pattern paper eq. 3: mean over frames of the RMS over (valid) points."""
+    sq = np.where(valid, err, 0.0) ** 2
+    n = valid.sum(axis=1)
+    ok = n > 0
+    return float(np.mean(np.sqrt(sq[ok].sum(axis=1) / n[ok]))) if ok.any() else 0.0
+
+
+def bone_pairs(motion: AnyMotion) -> np.ndarray:
+    """``(pairs, 2)`` point indices whose distance is a bone length.
+
+    Skeletons: every point with its parent (zero-length bones skipped). Markers: each marker with its
+    most rigid neighbour (the partner whose distance varies least over the clip).
+    """
+    if isinstance(motion, Motion):
+        sk = motion.skeleton
+        parents = sk.point_parents
+        pts = np.flatnonzero(parents >= 0)
+        lengths = np.linalg.norm(
+            np.concatenate([sk.offsets, np.array([o for _, o, _ in sk.end_sites]).reshape(-1, 3)])[pts], axis=1
+        )
+        pts = pts[lengths > 1e-9]
+        return np.stack([pts, parents[pts]], axis=1)
+    pos = motion.positions
+    m = pos.shape[1]
+    if m < 2:
+        return np.zeros((0, 2), dtype=np.int64)
+    step = max(1, pos.shape[0] // 500)
+    sub = pos[::step]
+    d = np.linalg.norm(sub[:, :, None] - sub[:, None, :], axis=-1)
+    with np.errstate(invalid="ignore"):
+        mean = np.nanmean(d, axis=0)
+        spread = np.nanstd(d, axis=0) / np.maximum(mean, 1e-9)
+    spread[np.isnan(spread)] = np.inf
+    np.fill_diagonal(spread, np.inf)
+    partner = np.argmin(spread, axis=1)
+    pairs = {tuple(sorted((i, int(partner[i])))) for i in range(m) if np.isfinite(spread[i, partner[i]])}
+    return np.array(sorted(pairs), dtype=np.int64).reshape(-1, 2)
+
+
+def bone_len_err(a: np.ndarray, b: np.ndarray, valid: np.ndarray, pairs: np.ndarray) -> float:
+    """Max over frames and bones of ``|len_decoded - len_original| / len_original``."""
+    if len(pairs) == 0:
+        return 0.0
+    la = np.linalg.norm(a[:, pairs[:, 0]] - a[:, pairs[:, 1]], axis=-1)
+    lb = np.linalg.norm(b[:, pairs[:, 0]] - b[:, pairs[:, 1]], axis=-1)
+    ok = valid[:, pairs[:, 0]] & valid[:, pairs[:, 1]] & (la > 1e-9)
+    if not ok.any():
+        return 0.0
+    return float(np.max(np.abs(lb - la)[ok] / la[ok]))
+
+
+def up_axis(a: np.ndarray, valid: np.ndarray) -> int:
+    """Vertical axis: the one with the largest median per-frame extent of the body (height > width)."""
+    big = np.where(valid[..., None], a, np.nan)
+    with np.errstate(invalid="ignore"):
+        ext = np.nanmax(big, axis=1) - np.nanmin(big, axis=1)
+    return int(np.argmax(np.nanmedian(ext, axis=0)))
+
+
+def foot_points(motion: AnyMotion, a: np.ndarray, valid: np.ndarray, up: int) -> np.ndarray:
+    """Indices of the two lowest points on average (the feet's end sites or toe markers)."""
+    if isinstance(motion, Motion) and motion.skeleton.end_sites:
+        cand = np.arange(motion.skeleton.n_joints, motion.skeleton.n_points)
+    else:
+        cand = np.arange(a.shape[1])
+    with np.errstate(invalid="ignore"):
+        h = np.nanmean(np.where(valid[:, cand], a[:, cand, up], np.nan), axis=0)
+    h = np.where(np.isnan(h), np.inf, h)
+    return cand[np.argsort(h)[:2]]
+
+
+def foot_skate(motion: AnyMotion, a: np.ndarray, b: np.ndarray, valid: np.ndarray,
+               unit_cm: float | None) -> float | None:
+    """Decoded minus original mean horizontal foot speed over contact frames, file units per second.
+
+    Contact: the original foot is within 5 cm (or 3 % of the body height if the unit is unknown) of
+    its lowest height and moves slower than 50 cm/s (or 30 % of the body height per second).
+    """
+    if a.shape[0] < 3:
+        return None
+    up = up_axis(a, valid)
+    feet = foot_points(motion, a, valid, up)
+    fps = motion.frame_rate
+    with np.errstate(invalid="ignore"):
+        body = float(np.nanmedian(np.nanmax(np.where(valid, a[..., up], np.nan), axis=1)
+                                  - np.nanmin(np.where(valid, a[..., up], np.nan), axis=1)))
+    h_tol = 5.0 / unit_cm if unit_cm else 0.03 * body
+    v_tol = 50.0 / unit_cm if unit_cm else 0.3 * body
+    horiz = [k for k in range(3) if k != up]
+    diffs = []
+    for f in feet:
+        pa, pb, ok = a[:, f], b[:, f], valid[:, f]
+        va = np.linalg.norm(np.diff(pa, axis=0), axis=1) * fps
+        vb = np.linalg.norm(np.diff(pb[:, horiz], axis=0), axis=1) * fps
+        vha = np.linalg.norm(np.diff(pa[:, horiz], axis=0), axis=1) * fps
+        okv = ok[1:] & ok[:-1]
+        low = pa[1:, up] <= np.nanmin(np.where(ok, pa[:, up], np.nan)) + h_tol
+        contact = okv & low & (va < v_tol)
+        if contact.any():
+            diffs.append(float(vb[contact].mean() - vha[contact].mean()))
+    return float(np.mean(diffs)) if diffs else None
+
+
+def evaluate(original: AnyMotion, decoded: AnyMotion) -> ErrorReport:
+    """All error figures of METRICS.md for a decoded motion against its original."""
+    a, b, valid = positions_pair(original, decoded)
+    if isinstance(decoded, MarkerMotion):
+        dec_missing = ~np.isfinite(b).all(axis=-1)
+        if np.any(dec_missing & valid):
+            raise MocapzError("decoded markers are missing samples the original has")
+    err = point_errors(a, b)
+    ev = err[valid]
+    unit_cm = original.skeleton.unit_cm if isinstance(original, Motion) else original.unit_cm
+    return ErrorReport(
+        distortion_pct=distortion_pct(a, b, valid),
+        arms=arms(err, valid),
+        max_err=float(ev.max()) if ev.size else 0.0,
+        p99_err=float(np.percentile(ev, 99)) if ev.size else 0.0,
+        bone_len_err=bone_len_err(a, b, valid, bone_pairs(original)),
+        foot_skate=foot_skate(original, a, b, valid, unit_cm),
+        unit_cm=unit_cm,
+        frames=int(a.shape[0]),
+        points=int(a.shape[1]),
+    )
+
+
+def size_figures(motion: AnyMotion, compressed_bytes: int, source_bytes: int | None = None) -> dict[str, float | int | None]:
+    """METRICS.md size figures: raw_bytes, compressed_bytes, ratio, ratio_file, bytes_per_second."""
+    raw = motion.raw_bytes
+    src = source_bytes if source_bytes is not None else motion.metadata.get("file_bytes")
+    return {
+        "raw_bytes": raw,
+        "compressed_bytes": int(compressed_bytes),
+        "ratio": raw / compressed_bytes if compressed_bytes else None,
+        "ratio_file": (src / compressed_bytes) if (src and compressed_bytes) else None,
+        "bytes_per_second": compressed_bytes / motion.duration if motion.duration else None,
+    }
