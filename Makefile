@@ -1,0 +1,33 @@
+# mocapz: `make demo` runs a real compress/decompress/evaluate round trip; `make test` runs the tests.
+PY ?= python3
+VENV := .venv
+BIN := $(VENV)/bin
+DATA ?= ../shared/data
+STAMP := $(VENV)/.installed
+
+.PHONY: demo test lint bench clean
+
+$(STAMP): pyproject.toml
+	test -x $(BIN)/python || $(PY) -m venv $(VENV)
+	$(BIN)/python -m pip install -q --upgrade pip
+	$(BIN)/python -m pip install -q -e '.[dev]'
+	touch $(STAMP)
+
+demo: $(STAMP)
+	@mkdir -p out
+	$(BIN)/mocapz compress $(DATA)/cmu/bvh/09_06.bvh -o out/09_06.lossless.mcz --codec lossless -f
+	$(BIN)/mocapz decompress out/09_06.lossless.mcz -o out/09_06.lossless.bvh -f
+	$(BIN)/mocapz eval $(DATA)/cmu/bvh/09_06.bvh out/09_06.lossless.mcz
+	$(BIN)/mocapz compress $(DATA)/cmu/bvh/09_06.bvh -o out/09_06.pga.mcz --codec pga --max-distortion 0.36 -f
+	$(BIN)/mocapz decompress out/09_06.pga.mcz -o out/09_06.pga.bvh -f
+	$(BIN)/mocapz eval $(DATA)/cmu/bvh/09_06.bvh out/09_06.pga.mcz
+
+test: $(STAMP)
+	$(BIN)/ruff check src tests bench
+	$(BIN)/python -m pytest
+
+bench: $(STAMP)
+	$(BIN)/python bench/lossless.py
+
+clean:
+	rm -rf $(VENV) out .pytest_cache
