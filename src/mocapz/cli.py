@@ -199,7 +199,8 @@ def eval_cmd(original: Path, decoded: Path, as_json: bool) -> None:
         click.echo(f"{k:>16}: {_fmt(rep[k])}{'' if k == 'distortion_pct' else ' units'}{extra}")
     click.echo(f"{'bone_len_err':>16}: {_fmt(rep['bone_len_err'])}")
     fs = rep.get("foot_skate_cm_per_s")
-    click.echo(f"{'foot_skate':>16}: {_fmt(rep['foot_skate'])} units/s" + (f"  ({fs:.4g} cm/s)" if fs is not None else ""))
+    fs_cm = f"  ({fs:.4g} cm/s)" if fs is not None else ""
+    click.echo(f"{'foot_skate':>16}: {_fmt(rep['foot_skate'])} units/s{fs_cm}")
     for k in ("raw_bytes", "compressed_bytes", "ratio", "ratio_file", "bytes_per_second"):
         if k in rep:
             click.echo(f"{k:>16}: {_fmt(rep[k])}")

@@ -219,7 +219,9 @@ def evaluate(original: AnyMotion, decoded: AnyMotion) -> ErrorReport:
     )
 
 
-def size_figures(motion: AnyMotion, compressed_bytes: int, source_bytes: int | None = None) -> dict[str, float | int | None]:
+def size_figures(
+    motion: AnyMotion, compressed_bytes: int, source_bytes: int | None = None
+) -> dict[str, float | int | None]:
     """METRICS.md size figures: raw_bytes, compressed_bytes, ratio, ratio_file, bytes_per_second."""
     raw = motion.raw_bytes
     src = source_bytes if source_bytes is not None else motion.metadata.get("file_bytes")
