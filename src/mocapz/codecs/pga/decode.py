@@ -1,0 +1,135 @@
+"""PGA decoder: rebuild trajectories, express end effectors in the root frame, solve the IK, write channels."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from ...errors import FormatError
+from ...layout import empty_motion, skeleton_from_dict
+from ...skeleton import Skeleton
+from . import lifting
+from .effectors import find_effectors
+from .ik import IKProblem, solve
+from .params import PGASettings
+from .pipeline import (
+    channels_from_rotations,
+    dequantise_model,
+    inner_joints,
+    position_columns,
+    skeleton_scale,
+    targets_in_root_frame,
+    unpack_matrices,
+)
+
+
+def stream_count(s: PGASettings, n_other: int) -> int:
+    return 4 + int(s.use_coords) + int(n_other > 0)
+
+
+def decode(sections: dict[str, bytes], layout: dict[str, Any]) -> Any:
+    """Container entry point: sections -> Motion."""
+    skeleton = skeleton_from_dict(layout)
+    frames = int(layout["frames"])
+    try:
+        settings = PGASettings.from_bytes(sections["params"])
+        channels = decode_channels(skeleton, settings, sections, frames)
+    except KeyError as exc:
+        raise FormatError(None, f"corrupted PGA stream (missing section {exc})") from None
+    return empty_motion(layout, channels)
+
+
+def decode_channels(skeleton: Skeleton, s: PGASettings, sections: dict[str, bytes], frames: int,
+                    edit: dict[int, np.ndarray] | None = None) -> np.ndarray:
+    """Decoded channel values ``(frames, channels)``.
+
+    ``edit`` maps effector slots to replacement global trajectories ``(kept frames, 3)`` (motion editing).
+    """
+    outliers = np.asarray(s.outliers, dtype=np.int64)
+    if outliers.size and (outliers.max() >= frames or np.any(np.diff(outliers) <= 0)):
+        raise FormatError(None, "corrupted PGA stream (outlier frames)")
+    kept = np.setdiff1d(np.arange(frames), outliers)
+    n = len(kept)
+    out = np.zeros((frames, skeleton.n_channels))
+    if n:
+        out[kept] = decode_kept(skeleton, s, sections, n, edit)
+    if outliers.size:
+        out[outliers] = decode_outliers(sections["outl"], outliers.size, skeleton.n_channels)
+    return out
+
+
+def decode_outliers(data: bytes, count: int, n_channels: int) -> np.ndarray:
+    from ...entropy import unpack_uint64, unzigzag
+
+    raw = unzigzag(unpack_uint64(data))
+    if raw.size != count * n_channels + n_channels:
+        raise FormatError(None, "corrupted PGA stream (outlier frames)")
+    dec = raw[:n_channels]
+    return raw[n_channels:].reshape(count, n_channels) / 10.0 ** dec
+
+
+def decode_kept(skeleton: Skeleton, s: PGASettings, sections: dict[str, bytes], n: int,
+                edit: dict[int, np.ndarray] | None = None) -> np.ndarray:
+    inner = inner_joints(skeleton)
+    root_cols, other_cols = position_columns(skeleton)
+    effectors = np.asarray(s.effectors, dtype=np.int64) if s.effectors else find_effectors(skeleton)
+    mats = unpack_matrices(sections["data"], stream_count(s, other_cols.size))
+    model = dequantise_model(mats[0], inner, s.k, s.basis_bits, s.mean_step)
+    if model.k != s.k:
+        raise FormatError(None, "corrupted PGA stream (model size)")
+    root_pos = lifting.decode_rn(mats[1], n, s.pos_step, s.lod_root)
+    root_rot = lifting.decode_so3(mats[2], n, s.rot_step, s.lod_root)
+    eff = lifting.decode_rn(mats[3], n, s.pos_step, s.lod_effectors).reshape(n, -1, 3)
+    if eff.shape[1] != len(effectors):
+        raise FormatError(None, "corrupted PGA stream (effector count)")
+    if edit:
+        for slot, traj in edit.items():
+            eff[:, slot] = traj
+    pos = 4
+    coords = None
+    if s.use_coords:
+        coords = lifting.decode_rn(mats[pos], n, s.coord_step, s.lod_coords)
+        pos += 1
+    other = lifting.decode_rn(mats[pos], n, s.pos_step, 0) if other_cols.size else np.zeros((n, 0))
+    return rebuild(skeleton, model, effectors, s, root_pos, root_rot, eff, coords, other)
+
+
+def rebuild(skeleton: Skeleton, model: Any, effectors: np.ndarray, s: PGASettings, root_pos: np.ndarray,
+            root_rot: np.ndarray, eff: np.ndarray, coords: np.ndarray | None, other: np.ndarray) -> np.ndarray:
+    """IK and channel assembly for the kept frames. Always returns finite values."""
+    n = root_pos.shape[0]
+    root_cols, other_cols = position_columns(skeleton)
+    trans = np.broadcast_to(skeleton.offsets, (n, skeleton.n_joints, 3)).copy()
+    if other_cols.size:
+        col_joint = _column_joints(skeleton)
+        for i, c in enumerate(other_cols):
+            trans[:, col_joint[c][0], "XYZ".index(col_joint[c][1])] = other[:, i]
+    problem = IKProblem(skeleton, model, effectors, np.broadcast_to(np.eye(3), (skeleton.n_joints, 3, 3)),
+                        trans, skeleton_scale(skeleton))
+    targets = targets_in_root_frame(eff, root_pos, root_rot)
+    x0 = coords if coords is not None else np.zeros((n, model.k))
+    x = solve(problem, targets, x0, x_prior=coords, lam_temporal=s.lam_temporal,
+              lam_prior=s.lam_prior if coords is not None else 0.0, iterations=s.iterations)
+    if not np.isfinite(x).all():  # pragma: no cover - solve() keeps finite values
+        x = np.nan_to_num(x0)
+    local = np.broadcast_to(np.eye(3), (n, skeleton.n_joints, 3, 3)).copy()
+    local[:, 0] = root_rot
+    local[:, model.joints] = model.pose(x)
+    out = np.zeros((n, skeleton.n_channels))
+    channels_from_rotations(skeleton, local, out)
+    rot_cols = skeleton.rotation_columns()
+    period = 360.0 if skeleton.angle_unit == "deg" else 2 * np.pi
+    out[:, rot_cols] = np.unwrap(out[:, rot_cols], period=period, axis=0)
+    for c in root_cols:
+        out[:, c] = root_pos[:, "XYZ".index(skeleton.channel_labels()[c].split(".")[-1][0])]
+    out[:, other_cols] = other
+    return np.nan_to_num(out)
+
+
+def _column_joints(skeleton: Skeleton) -> dict[int, tuple[int, str]]:
+    cj = {}
+    for j, (sl, chs) in enumerate(zip(skeleton.channel_slices(), skeleton.channels, strict=True)):
+        for i, c in enumerate(chs):
+            cj[sl.start + i] = (j, c[0])
+    return cj

@@ -1,0 +1,76 @@
+"""Automatic choice of end effectors: one extremity per limb, found from the tree."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ...skeleton import Skeleton
+
+
+def rest_positions(skeleton: Skeleton) -> np.ndarray:
+    """Rest-pose positions ``(points, 3)`` (all rotations zero, offsets only)."""
+    from ...kinematics import chain
+
+    n = skeleton.n_joints
+    rot = np.broadcast_to(np.eye(3), (1, n, 3, 3)).copy()
+    return chain(skeleton, rot, skeleton.offsets[None].copy())[0][0]
+
+
+def path_to_root(skeleton: Skeleton, point: int) -> list[int]:
+    pp = skeleton.point_parents
+    out = []
+    j = int(pp[point]) if point >= skeleton.n_joints else point
+    while j >= 0:
+        out.append(j)
+        j = int(skeleton.parents[j])
+    return out
+
+
+def find_effectors(skeleton: Skeleton, names: list[str] | None = None) -> np.ndarray:
+    """FK point indices of the end effectors.
+
+    With ``names`` (joint or end-site names) those points are used. Otherwise the extremities: leaf
+    points (end sites, or joints without children and end sites), grouped into limbs (two leaves are in
+    the same limb when the path between them is shorter than 40 % of the longest root-to-leaf path, as the
+    fingers of one hand), keeping the leaf farthest from the root in each limb. For a CMU skeleton: both
+    toe tips, the head top and one finger tip of each hand.
+    """
+    points = skeleton.point_names
+    if names:
+        missing = [n for n in names if n not in points]
+        if missing:
+            from ...errors import OptionError
+
+            raise OptionError(f"unknown effector joint(s): {', '.join(missing)} (known: {', '.join(points)})")
+        return np.array([points.index(n) for n in names], dtype=np.int64)
+    rest = rest_positions(skeleton)
+    pp = skeleton.point_parents
+    has_child = np.zeros(skeleton.n_points, dtype=bool)
+    has_child[pp[pp >= 0]] = True
+    leaves = [p for p in range(skeleton.n_points) if not has_child[p] and p != 0]
+    if not leaves:
+        return np.zeros(0, dtype=np.int64)
+
+    def depth(p: int) -> float:
+        chain_ = [p] + path_to_root(skeleton, p) if p >= skeleton.n_joints else path_to_root(skeleton, p)
+        return float(sum(np.linalg.norm(rest[a] - rest[int(pp[a])]) for a in chain_ if pp[a] >= 0))
+
+    d = {p: depth(p) for p in leaves}
+    longest = max(d.values()) or 1.0
+    anc = {p: set(path_to_root(skeleton, p)) for p in leaves}
+
+    def between(a: int, b: int) -> float:
+        common = anc[a] & anc[b]
+        lca = max(common, key=lambda j: len(path_to_root(skeleton, j))) if common else 0
+        return d[a] + d[b] - 2 * depth_joint(lca)
+
+    def depth_joint(j: int) -> float:
+        return float(sum(np.linalg.norm(rest[a] - rest[int(pp[a])]) for a in path_to_root(skeleton, j) if pp[a] >= 0))
+
+    chosen: list[int] = []
+    for p in sorted(leaves, key=lambda q: (-d[q], q)):
+        if d[p] < 0.15 * longest:
+            continue
+        if all(between(p, c) >= 0.4 * longest for c in chosen):
+            chosen.append(p)
+    return np.array(sorted(chosen), dtype=np.int64)

@@ -1,0 +1,118 @@
+"""PGA encoder: pose model, multiscale trajectories, quantisation and entropy coding."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from ...entropy import pack_uint64, zigzag
+from ...kinematics import forward_kinematics
+from ...motion import Motion
+from . import lifting, so3
+from .effectors import find_effectors
+from .model import PGAModel, fit_pga
+from .params import PGASettings
+from .pipeline import (
+    Clip,
+    analyse,
+    check_skeleton,
+    coordinates,
+    inner_joints,
+    pack_matrices,
+    quantise_model,
+)
+
+
+def detect_outliers(motion: Motion, factor: float = 2.0) -> list[int]:
+    """Frames whose pose is far from all others (e.g. the T-pose cgspeed files add as frame 1).
+
+    A frame is an outlier when its inner-joint pose is farther from the intrinsic mean than ``factor``
+    times the median distance and also that far from both its neighbours' poses (a spike, not a move).
+    """
+    if motion.n_frames < 8:
+        return []
+    sk = motion.skeleton
+    inner = inner_joints(sk)
+    from ...kinematics import local_rotations
+
+    rot = local_rotations(sk, motion.channels)[:, inner]
+    mu = so3.karcher_mean(rot, iterations=5)
+    d = np.linalg.norm(so3.log(np.swapaxes(mu, -1, -2)[None] @ rot).reshape(len(rot), -1), axis=1)
+    step = np.linalg.norm(so3.log(np.swapaxes(rot[:-1], -1, -2) @ rot[1:]).reshape(len(rot) - 1, -1), axis=1)
+    med_d, med_step = float(np.median(d)), float(np.median(step))
+    out = []
+    for t in range(len(d)):
+        jumps = [step[t - 1]] if t > 0 else []
+        jumps += [step[t]] if t < len(step) else []
+        if d[t] > factor * med_d and min(jumps) > 10 * max(med_step, 1e-9):
+            out.append(t)
+    return out
+
+
+@dataclass
+class Prepared:
+    """Per-clip analysis reused across the settings tried by rate control."""
+
+    motion: Motion
+    outliers: list[int]
+    kept: np.ndarray
+    clip: Clip
+    effectors: np.ndarray
+    eff_global: np.ndarray  # (F, e, 3)
+    full_model: PGAModel
+
+
+def prepare(motion: Motion, effectors: list[int] | None = None, outliers: list[int] | None = None) -> Prepared:
+    sk = motion.skeleton
+    check_skeleton(sk)
+    out = detect_outliers(motion) if outliers is None else outliers
+    kept = np.setdiff1d(np.arange(motion.n_frames), np.asarray(out, dtype=np.int64))
+    ch = motion.channels[kept]
+    clip = analyse(sk, ch)
+    eff = np.asarray(effectors, dtype=np.int64) if effectors else find_effectors(sk)
+    pos = forward_kinematics(sk, ch)[0]
+    inner = inner_joints(sk)
+    model = fit_pga(clip.local_rot[:, inner], inner) if len(kept) else None
+    return Prepared(motion, list(out), kept, clip, eff, pos[:, eff], model)  # type: ignore[arg-type]
+
+
+def encode_prepared(p: Prepared, s: PGASettings) -> dict[str, bytes]:
+    """Sections for fixed settings (``s.outliers`` / ``s.effectors`` are filled in from ``p``)."""
+    sk = p.motion.skeleton
+    s = s.replace(outliers=list(p.outliers)).roundtrip()
+    sections: dict[str, bytes] = {"params": s.to_bytes()}
+    n = len(p.kept)
+    if n:
+        s.validate(p.full_model.basis.shape[0], n)
+        ints, model_q = quantise_model(p.full_model, s.k, s.basis_bits, s.mean_step)
+        inner = model_q.joints
+        mats = [ints]
+        mats.append(lifting.encode_rn(p.clip.root_pos, s.pos_step, s.lod_root)[0])
+        mats.append(lifting.encode_so3(p.clip.root_rot, s.rot_step, s.lod_root)[0])
+        mats.append(lifting.encode_rn(p.eff_global.reshape(n, -1), s.pos_step, s.lod_effectors)[0])
+        if s.use_coords:
+            x = coordinates(model_q, p.clip.local_rot[:, inner])
+            mats.append(lifting.encode_rn(x, s.coord_step, s.lod_coords)[0])
+        if p.clip.other_pos.shape[1]:
+            mats.append(lifting.encode_rn(p.clip.other_pos, s.pos_step, 0)[0])
+        sections["data"] = pack_matrices(mats)
+    if p.outliers:
+        sections["outl"] = encode_outliers(p.motion, p.outliers)
+    return sections
+
+
+def encode_outliers(motion: Motion, frames: list[int]) -> bytes:
+    """Outlier frames' channels exactly at the source's decimals (4 when unknown)."""
+    dec = motion.decimals if motion.decimals is not None else np.full(motion.skeleton.n_channels, 4)
+    dec = np.minimum(dec, 6)
+    vals = np.round(motion.channels[frames] * 10.0**dec).astype(np.int64)
+    return pack_uint64(zigzag(np.concatenate([dec, vals.ravel()])))
+
+
+def encode(motion: Motion, **options: Any) -> dict[str, bytes]:
+    """Container entry point (options: see :func:`mocapz.codecs.pga.options.parse_options`)."""
+    from .ratecontrol import encode_with_options
+
+    return encode_with_options(motion, **options)

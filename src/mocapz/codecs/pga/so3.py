@@ -1,0 +1,93 @@
+"""SO(3) tools in plain numpy, batched over any leading axes.
+
+Rotation vectors ``w`` have shape ``(..., 3)`` (radians, axis * angle); matrices ``(..., 3, 3)``.
+scipy's ``Rotation`` is used for Euler conversions elsewhere; these hot paths (exp, log, right
+Jacobian, intrinsic mean) are written here because they run inside the IK loop.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+_EPS = 1e-8
+
+
+def hat(w: np.ndarray) -> np.ndarray:
+    """Skew-symmetric matrices ``(..., 3, 3)`` with ``hat(w) @ v == cross(w, v)``."""
+    z = np.zeros(w.shape[:-1])
+    x, y, t = w[..., 0], w[..., 1], w[..., 2]
+    return np.stack([np.stack([z, -t, y], -1), np.stack([t, z, -x], -1), np.stack([-y, x, z], -1)], -2)
+
+
+def exp(w: np.ndarray) -> np.ndarray:
+    """Rodrigues' formula: rotation matrices from rotation vectors."""
+    w = np.asarray(w, dtype=np.float64)
+    th2 = np.einsum("...i,...i->...", w, w)
+    th = np.sqrt(th2)
+    small = th < 1e-4
+    ths = np.where(small, 1.0, th)
+    a = np.where(small, 1.0 - th2 / 6.0, np.sin(ths) / ths)
+    b = np.where(small, 0.5 - th2 / 24.0, (1.0 - np.cos(ths)) / (ths * ths))
+    k = hat(w)
+    return np.eye(3) + a[..., None, None] * k + b[..., None, None] * (k @ k)
+
+
+def log(r: np.ndarray) -> np.ndarray:
+    """Rotation vectors (angle in [0, pi]) from rotation matrices, stable near 0 and pi."""
+    r = np.asarray(r, dtype=np.float64)
+    tr = np.trace(r, axis1=-2, axis2=-1)
+    cos = np.clip((tr - 1.0) / 2.0, -1.0, 1.0)
+    th = np.arccos(cos)
+    vee = np.stack([r[..., 2, 1] - r[..., 1, 2], r[..., 0, 2] - r[..., 2, 0], r[..., 1, 0] - r[..., 0, 1]], -1)
+    sin = np.sin(th)
+    small = th < 1e-4
+    near_pi = th > np.pi - 1e-3
+    fac = np.where(small, 0.5 + th * th / 12.0, th / (2.0 * np.where(small | near_pi, 1.0, sin)))
+    w = fac[..., None] * vee
+    if np.any(near_pi):
+        w = np.where(near_pi[..., None], _log_near_pi(r, th, vee), w)
+    return w
+
+
+def _log_near_pi(r: np.ndarray, th: np.ndarray, vee: np.ndarray) -> np.ndarray:
+    # R + I = 2 n n^T + O(pi - th): take the largest column for the axis, sign from vee.
+    b = (r + np.eye(3)) / 2.0
+    diag = np.diagonal(b, axis1=-2, axis2=-1)
+    i = np.argmax(diag, axis=-1)
+    col = np.take_along_axis(b, i[..., None, None].repeat(3, -1), axis=-2)[..., 0, :]
+    n = col / np.sqrt(np.maximum(np.take_along_axis(diag, i[..., None], -1), _EPS))
+    sign = np.where(np.einsum("...i,...i->...", n, vee) < 0, -1.0, 1.0)
+    return n * (sign * th)[..., None]
+
+
+def right_jacobian(w: np.ndarray) -> np.ndarray:
+    """``J_r(w)`` with ``exp(w + d) ~= exp(w) @ exp(J_r(w) @ d)``, shape ``(..., 3, 3)``."""
+    th2 = np.einsum("...i,...i->...", w, w)
+    th = np.sqrt(th2)
+    small = th < 1e-4
+    ths = np.where(small, 1.0, th)
+    a = np.where(small, 0.5 - th2 / 24.0, (1.0 - np.cos(ths)) / (ths * ths))
+    b = np.where(small, 1.0 / 6.0 - th2 / 120.0, (ths - np.sin(ths)) / (ths**3))
+    k = hat(w)
+    return np.eye(3) - a[..., None, None] * k + b[..., None, None] * (k @ k)
+
+
+def karcher_mean(r: np.ndarray, iterations: int = 50, tol: float = 1e-12) -> np.ndarray:
+    """Intrinsic (Karcher / Frechet) mean over axis 0 of rotations ``(samples, ..., 3, 3)``.
+
+    Iterates ``mu <- mu exp(mean_i log(mu^T r_i))`` until the update is below ``tol`` radians.
+    """
+    mu = _chordal_mean(r)
+    for _ in range(iterations):
+        t = log(np.swapaxes(mu, -1, -2)[None] @ r).mean(axis=0)
+        mu = mu @ exp(t)
+        if float(np.max(np.linalg.norm(t, axis=-1), initial=0.0)) < tol:
+            break
+    return mu
+
+
+def _chordal_mean(r: np.ndarray) -> np.ndarray:
+    u, _, vt = np.linalg.svd(r.mean(axis=0))
+    d = np.sign(np.linalg.det(u @ vt))
+    u[..., :, 2] *= d[..., None]
+    return u @ vt
