@@ -35,7 +35,7 @@ def detect_decimals(values: np.ndarray, max_decimals: int = 9) -> np.ndarray | N
         v = values[:, todo] * (10.0**d)
         if np.abs(v).max(initial=0.0) >= 2**52:
             break
-        ok = np.all(np.abs(v - np.round(v)) <= 1e-7 + 1e-12 * np.abs(v), axis=0)
+        ok = np.all(np.round(v) / (10.0**d) == values[:, todo], axis=0)
         idx = np.flatnonzero(todo)[ok]
         out[idx] = d
         todo[idx] = False

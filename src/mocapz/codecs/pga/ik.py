@@ -97,8 +97,14 @@ class IKProblem:
         basis = model.basis.reshape(len(joints), 3, -1)  # (n, 3, k)
         a = g[:, joints] @ so3.right_jacobian(w) @ basis[None]  # (F, n, 3, k)
         d = pos[:, :, None, :] - o[:, None, joints, :]  # (F, e, n, 3)
-        cr = np.cross(a[:, None], d[..., None], axis=-2)  # (F, e, n, 3, k)
-        return np.einsum("fenak,en->feak", cr, self._mask)
+        dm = d * self._mask[None, :, :, None]  # only joints above each effector move it
+        # column-wise cross product a x d, summed over joints: written out per component (np.cross on
+        # 5-D arrays is ten times slower)
+        jac = np.empty((pos.shape[0], pos.shape[1], 3, a.shape[-1]))
+        for c, (i1, i2) in enumerate(((1, 2), (2, 0), (0, 1))):
+            jac[:, :, c] = np.einsum("fnk,fen->fek", a[:, :, i1], dm[..., i2]) - np.einsum(
+                "fnk,fen->fek", a[:, :, i2], dm[..., i1])
+        return jac
 
 
 def solve(problem: IKProblem, targets: np.ndarray, x0: np.ndarray, *, x_prior: np.ndarray | None = None,

@@ -121,8 +121,9 @@ def dequantise_model(ints: np.ndarray, joints: np.ndarray, k: int, basis_bits: i
 def coordinates(model: PGAModel, rotations: np.ndarray) -> np.ndarray:
     """Least-squares geodesic coordinates ``(F, k)`` of poses for a (quantised, near-orthonormal) basis."""
     t = model.tangent(rotations)
-    sol, *_ = np.linalg.lstsq(model.basis, t.T, rcond=None)
-    return sol.T
+    v = model.basis
+    gram = v.T @ v + 1e-12 * np.eye(v.shape[1])
+    return np.linalg.solve(gram, v.T @ t.T).T
 
 
 # ----------------------------------------------------------------- channels
