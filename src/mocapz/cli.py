@@ -28,6 +28,7 @@ CODEC_OPTIONS: dict[str, tuple[Any, str]] = {
     "max_arms": (str, "patterns: target ARMS, file units or with a unit (6.5mm)"),
     "theta": (float, "patterns: segmentation threshold, relative to the head-marker size (ADDH)"),
     "bits": (int, "quantisation bits"),
+    "paper": (bool, "PGA: decode from end effectors alone, as in the paper (no coded coordinates)"),
     "hierarchy": (str, "patterns: JSON file giving the body-part hierarchy"),
     "weights": (str, "patterns: JSON file of per-marker weights"),
 }
@@ -66,7 +67,10 @@ def cli() -> None:
 def _codec_option_decorators(f: Any) -> Any:
     for name, (typ, help_text) in reversed(CODEC_OPTIONS.items()):
         flag = "--" + name.replace("_", "-")
-        f = click.option(flag, name, type=typ, default=None, help=help_text)(f)
+        if typ is bool:
+            f = click.option(flag, name, is_flag=True, default=None, help=help_text)(f)
+        else:
+            f = click.option(flag, name, type=typ, default=None, help=help_text)(f)
     return f
 
 

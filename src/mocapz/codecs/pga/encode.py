@@ -80,7 +80,6 @@ def prepare(motion: Motion, effectors: list[int] | None = None, outliers: list[i
 
 def encode_prepared(p: Prepared, s: PGASettings) -> dict[str, bytes]:
     """Sections for fixed settings (``s.outliers`` / ``s.effectors`` are filled in from ``p``)."""
-    sk = p.motion.skeleton
     s = s.replace(outliers=list(p.outliers)).roundtrip()
     sections: dict[str, bytes] = {"params": s.to_bytes()}
     n = len(p.kept)

@@ -102,8 +102,7 @@ class IKProblem:
         # 5-D arrays is ten times slower)
         jac = np.empty((pos.shape[0], pos.shape[1], 3, a.shape[-1]))
         for c, (i1, i2) in enumerate(((1, 2), (2, 0), (0, 1))):
-            jac[:, :, c] = np.einsum("fnk,fen->fek", a[:, :, i1], dm[..., i2]) - np.einsum(
-                "fnk,fen->fek", a[:, :, i2], dm[..., i1])
+            jac[:, :, c] = dm[..., i2] @ a[:, :, i1] - dm[..., i1] @ a[:, :, i2]
         return jac
 
 

@@ -12,6 +12,7 @@ then interpolates them smoothly.
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -47,8 +48,9 @@ class Level:
     groups: list[tuple[np.ndarray, np.ndarray, np.ndarray, int]]
 
 
+@functools.lru_cache(maxsize=64)
 def plan(n: int) -> list[Level]:
-    """Prediction plan for ``n`` samples, coarsest level first."""
+    """Prediction plan for ``n`` samples, coarsest level first (cached: treat as read-only)."""
     levels = []
     for lev in range(n_levels(n) - 1, -1, -1):
         s = 1 << lev

@@ -46,7 +46,7 @@ class PGASettings:
     coord_step: float = 5e-3
     basis_bits: int = 12
     mean_step: float = 2e-4
-    lam_temporal: float = 1e-4
+    lam_temporal: float = 0.0
     lam_prior: float = 1e-2
     iterations: int = 10
     effectors: list[int] = field(default_factory=list)

@@ -1,0 +1,84 @@
+"""Motion editing with the PGA model (the paper's second use).
+
+A PGA-compressed clip is re-solved with some end-effector trajectories replaced: the IK finds, frame by
+frame, the pose of the clip's own pose space that puts the effectors where asked, so the edited motion
+keeps the style of the original.
+
+>>> data = mocapz.compress(motion, codec="pga")
+>>> traj = effector_trajectories(data)            # {"LeftToeBase_End": (frames, 3), ...}
+>>> traj["LeftToeBase_End"][100:140, 1] += 10 / motion.skeleton.unit_cm   # lift 10 cm (Y up)
+>>> edited = edit(data, {"LeftToeBase_End": traj["LeftToeBase_End"]})
+>>> baseline = edit(data, {})   # the same solve without the change, to compare with
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ...api import read_container
+from ...errors import OptionError
+from ...kinematics import forward_kinematics
+from ...layout import empty_motion, skeleton_from_dict
+from ...motion import Motion
+from . import lifting
+from .decode import decode_channels, stream_count
+from .effectors import find_effectors
+from .params import PGASettings
+from .pipeline import position_columns, unpack_matrices
+
+
+def _open(data: bytes) -> tuple[dict, dict, PGASettings, np.ndarray]:
+    box, layout = read_container(data)
+    if box.codec != "pga":
+        raise OptionError(f"editing needs a PGA-compressed clip, this one was written by {box.codec!r}")
+    skeleton = skeleton_from_dict(layout)
+    s = PGASettings.from_bytes(box.sections["params"])
+    eff = np.asarray(s.effectors, dtype=np.int64) if s.effectors else find_effectors(skeleton)
+    return box.sections, layout, s, eff
+
+
+def effector_trajectories(data: bytes) -> dict[str, np.ndarray]:
+    """The coded global trajectories ``(frames, 3)`` (file units) of the clip's end effectors, by name:
+    the IK's targets, the natural thing to edit. Frames coded apart (outliers) hold their FK positions."""
+    sections, layout, s, eff = _open(data)
+    skeleton = skeleton_from_dict(layout)
+    frames = int(layout["frames"])
+    kept = np.setdiff1d(np.arange(frames), np.asarray(s.outliers, dtype=np.int64))
+    _, other_cols = position_columns(skeleton)
+    mats = unpack_matrices(sections["data"], stream_count(s, other_cols.size))
+    coded = lifting.decode_rn(mats[3], len(kept), s.pos_step, s.lod_effectors).reshape(len(kept), -1, 3)
+    pos = forward_kinematics(skeleton, decode_channels(skeleton, s, sections, frames))[0][:, eff]
+    pos[kept] = coded
+    names = skeleton.point_names
+    return {names[e]: pos[:, i].copy() for i, e in enumerate(eff)}
+
+
+def edit(data: bytes, targets: dict[str, np.ndarray], iterations: int = 40, lam_prior: float = 1e-6) -> Motion:
+    """Re-solve a PGA clip with end-effector trajectories replaced.
+
+    Args:
+        data: bytes of a ``.mcz`` written by the PGA codec.
+        targets: effector name -> new global trajectory ``(frames, 3)`` in file units (all frames of the
+            clip; frames coded apart as outliers are kept as they were).
+        iterations: LM iterations (more than for plain decoding: the edit moves far from the warm start).
+        lam_prior: weight keeping the poses near the coded ones (small, so the targets are reached).
+
+    Returns:
+        The edited motion, same skeleton and frame count.
+    """
+    sections, layout, s, eff = _open(data)
+    skeleton = skeleton_from_dict(layout)
+    frames = int(layout["frames"])
+    names = skeleton.point_names
+    slots = {names[e]: i for i, e in enumerate(eff)}
+    kept = np.setdiff1d(np.arange(frames), np.asarray(s.outliers, dtype=np.int64))
+    replace: dict[int, np.ndarray] = {}
+    for name, traj in targets.items():
+        if name not in slots:
+            raise OptionError(f"{name!r} is not an end effector of this clip (effectors: {', '.join(slots)})")
+        traj = np.asarray(traj, dtype=np.float64)
+        if traj.shape != (frames, 3) or not np.isfinite(traj).all():
+            raise OptionError(f"trajectory for {name!r} must be finite with shape ({frames}, 3), got {traj.shape}")
+        replace[slots[name]] = traj[kept]
+    s2 = s.replace(iterations=iterations, lam_prior=lam_prior)
+    return empty_motion(layout, decode_channels(skeleton, s2, sections, frames, edit=replace))
