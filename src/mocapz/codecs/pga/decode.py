@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -12,6 +13,7 @@ from ...skeleton import Skeleton
 from . import lifting
 from .effectors import find_effectors
 from .ik import IKProblem, solve
+from .model import PGAModel
 from .params import PGASettings
 from .pipeline import (
     channels_from_rotations,
@@ -69,61 +71,94 @@ def decode_outliers(data: bytes, count: int, n_channels: int) -> np.ndarray:
     return raw[n_channels:].reshape(count, n_channels) / 10.0 ** dec
 
 
-def decode_kept(skeleton: Skeleton, s: PGASettings, sections: dict[str, bytes], n: int,
-                edit: dict[int, np.ndarray] | None = None) -> np.ndarray:
+@dataclass
+class Decoded:
+    """The decoded streams of the kept frames (F = kept frames)."""
+
+    model: PGAModel
+    effectors: np.ndarray
+    problem: IKProblem
+    root_pos: np.ndarray  # (F, 3)
+    root_rot: np.ndarray  # (F, 3, 3)
+    targets: np.ndarray  # (F, e, 3) effector targets in the root frame
+    coords: np.ndarray | None  # (F, k)
+
+
+def decode_streams(skeleton: Skeleton, s: PGASettings, sections: dict[str, bytes], n: int) -> Decoded:
     inner = inner_joints(skeleton)
-    root_cols, other_cols = position_columns(skeleton)
+    _, other_cols = position_columns(skeleton)
     effectors = np.asarray(s.effectors, dtype=np.int64) if s.effectors else find_effectors(skeleton)
     mats = unpack_matrices(sections["data"], stream_count(s, other_cols.size))
     model = dequantise_model(mats[0], inner, s.k, s.basis_bits, s.mean_step)
-    if model.k != s.k:
-        raise FormatError(None, "corrupted PGA stream (model size)")
     root_pos = lifting.decode_rn(mats[1], n, s.pos_step, s.lod_root)
     root_rot = lifting.decode_so3(mats[2], n, s.rot_step, s.lod_root)
     eff = lifting.decode_rn(mats[3], n, s.pos_step, s.lod_effectors).reshape(n, -1, 3)
     if eff.shape[1] != len(effectors):
         raise FormatError(None, "corrupted PGA stream (effector count)")
-    if edit:
-        for slot, traj in edit.items():
-            eff[:, slot] = traj
     pos = 4
     coords = None
     if s.use_coords:
         coords = lifting.decode_rn(mats[pos], n, s.coord_step, s.lod_coords)
         pos += 1
     other = lifting.decode_rn(mats[pos], n, s.pos_step, 0) if other_cols.size else np.zeros((n, 0))
-    return rebuild(skeleton, model, effectors, s, root_pos, root_rot, eff, coords, other)
+    problem = make_problem(skeleton, model, effectors, other)
+    if s.eff_mode == 1 and coords is not None:
+        targets = problem.forward(coords)[0] + eff
+    else:
+        targets = targets_in_root_frame(eff, root_pos, root_rot)
+    return Decoded(model, effectors, problem, root_pos, root_rot, targets, coords)
 
 
-def rebuild(skeleton: Skeleton, model: Any, effectors: np.ndarray, s: PGASettings, root_pos: np.ndarray,
-            root_rot: np.ndarray, eff: np.ndarray, coords: np.ndarray | None, other: np.ndarray) -> np.ndarray:
-    """IK and channel assembly for the kept frames. Always returns finite values."""
-    n = root_pos.shape[0]
-    root_cols, other_cols = position_columns(skeleton)
-    trans = np.broadcast_to(skeleton.offsets, (n, skeleton.n_joints, 3)).copy()
+def make_problem(skeleton: Skeleton, model: PGAModel, effectors: np.ndarray, other: np.ndarray) -> IKProblem:
+    """The IK set-up, with the decoded non-root position channels (if any) as translations."""
+    n = other.shape[0]
+    _, other_cols = position_columns(skeleton)
     if other_cols.size:
+        trans = np.broadcast_to(skeleton.offsets, (n, skeleton.n_joints, 3)).copy()
         col_joint = _column_joints(skeleton)
         for i, c in enumerate(other_cols):
             trans[:, col_joint[c][0], "XYZ".index(col_joint[c][1])] = other[:, i]
+    else:
+        trans = skeleton.offsets
     problem = IKProblem(skeleton, model, effectors, np.broadcast_to(np.eye(3), (skeleton.n_joints, 3, 3)),
                         trans, skeleton_scale(skeleton))
-    targets = targets_in_root_frame(eff, root_pos, root_rot)
-    x0 = coords if coords is not None else np.zeros((n, model.k))
-    x = solve(problem, targets, x0, x_prior=coords, lam_temporal=s.lam_temporal,
-              lam_prior=s.lam_prior if coords is not None else 0.0, iterations=s.iterations)
+    problem.other = other  # type: ignore[attr-defined]
+    return problem
+
+
+def decode_kept(skeleton: Skeleton, s: PGASettings, sections: dict[str, bytes], n: int,
+                edit: dict[int, np.ndarray] | None = None) -> np.ndarray:
+    d = decode_streams(skeleton, s, sections, n)
+    targets = d.targets
+    if edit:
+        targets = targets.copy()
+        for slot, traj in edit.items():
+            targets[:, slot] = targets_in_root_frame(traj[:, None], d.root_pos, d.root_rot)[:, 0]
+    return rebuild(skeleton, d, s, targets)
+
+
+def rebuild(skeleton: Skeleton, d: Decoded, s: PGASettings, targets: np.ndarray) -> np.ndarray:
+    """IK and channel assembly for the kept frames. Always returns finite values."""
+    n = d.root_pos.shape[0]
+    model = d.model
+    root_cols, other_cols = position_columns(skeleton)
+    x0 = d.coords if d.coords is not None else np.zeros((n, model.k))
+    x = solve(d.problem, targets, x0, x_prior=d.coords, lam_temporal=s.lam_temporal,
+              lam_prior=s.lam_prior if d.coords is not None else 0.0, iterations=s.iterations)
     if not np.isfinite(x).all():  # pragma: no cover - solve() keeps finite values
         x = np.nan_to_num(x0)
     local = np.broadcast_to(np.eye(3), (n, skeleton.n_joints, 3, 3)).copy()
-    local[:, 0] = root_rot
+    local[:, 0] = d.root_rot
     local[:, model.joints] = model.pose(x)
     out = np.zeros((n, skeleton.n_channels))
     channels_from_rotations(skeleton, local, out)
     rot_cols = skeleton.rotation_columns()
     period = 360.0 if skeleton.angle_unit == "deg" else 2 * np.pi
     out[:, rot_cols] = np.unwrap(out[:, rot_cols], period=period, axis=0)
+    labels = skeleton.channel_labels()
     for c in root_cols:
-        out[:, c] = root_pos[:, "XYZ".index(skeleton.channel_labels()[c].split(".")[-1][0])]
-    out[:, other_cols] = other
+        out[:, c] = d.root_pos[:, "XYZ".index(labels[c].split(".")[-1][0])]
+    out[:, other_cols] = d.problem.other  # type: ignore[attr-defined]
     return np.nan_to_num(out)
 
 

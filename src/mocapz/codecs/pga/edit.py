@@ -20,11 +20,9 @@ from ...errors import OptionError
 from ...kinematics import forward_kinematics
 from ...layout import empty_motion, skeleton_from_dict
 from ...motion import Motion
-from . import lifting
-from .decode import decode_channels, stream_count
+from .decode import decode_channels, decode_streams
 from .effectors import find_effectors
 from .params import PGASettings
-from .pipeline import position_columns, unpack_matrices
 
 
 def _open(data: bytes) -> tuple[dict, dict, PGASettings, np.ndarray]:
@@ -44,9 +42,8 @@ def effector_trajectories(data: bytes) -> dict[str, np.ndarray]:
     skeleton = skeleton_from_dict(layout)
     frames = int(layout["frames"])
     kept = np.setdiff1d(np.arange(frames), np.asarray(s.outliers, dtype=np.int64))
-    _, other_cols = position_columns(skeleton)
-    mats = unpack_matrices(sections["data"], stream_count(s, other_cols.size))
-    coded = lifting.decode_rn(mats[3], len(kept), s.pos_step, s.lod_effectors).reshape(len(kept), -1, 3)
+    d = decode_streams(skeleton, s, sections, len(kept))
+    coded = d.root_pos[:, None] + np.einsum("fij,fej->fei", d.root_rot, d.targets)
     pos = forward_kinematics(skeleton, decode_channels(skeleton, s, sections, frames))[0][:, eff]
     pos[kept] = coded
     names = skeleton.point_names

@@ -11,6 +11,7 @@ from ...entropy import pack_uint64, zigzag
 from ...kinematics import forward_kinematics
 from ...motion import Motion
 from . import lifting, so3
+from .decode import make_problem
 from .effectors import find_effectors
 from .model import PGAModel, fit_pga
 from .params import PGASettings
@@ -22,6 +23,7 @@ from .pipeline import (
     inner_joints,
     pack_matrices,
     quantise_model,
+    targets_in_root_frame,
 )
 
 
@@ -61,6 +63,7 @@ class Prepared:
     clip: Clip
     effectors: np.ndarray
     eff_global: np.ndarray  # (F, e, 3)
+    eff_local: np.ndarray  # (F, e, 3) in the root frame
     full_model: PGAModel
 
 
@@ -75,7 +78,8 @@ def prepare(motion: Motion, effectors: list[int] | None = None, outliers: list[i
     pos = forward_kinematics(sk, ch)[0]
     inner = inner_joints(sk)
     model = fit_pga(clip.local_rot[:, inner], inner) if len(kept) else None
-    return Prepared(motion, list(out), kept, clip, eff, pos[:, eff], model)  # type: ignore[arg-type]
+    local = targets_in_root_frame(pos[:, eff], clip.root_pos, clip.root_rot)
+    return Prepared(motion, list(out), kept, clip, eff, pos[:, eff], local, model)  # type: ignore[arg-type]
 
 
 def encode_prepared(p: Prepared, s: PGASettings) -> dict[str, bytes]:
@@ -90,12 +94,22 @@ def encode_prepared(p: Prepared, s: PGASettings) -> dict[str, bytes]:
         mats = [ints]
         mats.append(lifting.encode_rn(p.clip.root_pos, s.pos_step, s.lod_root)[0])
         mats.append(lifting.encode_so3(p.clip.root_rot, s.rot_step, s.lod_root)[0])
-        mats.append(lifting.encode_rn(p.eff_global.reshape(n, -1), s.pos_step, s.lod_effectors)[0])
+        other_q, other_rec = lifting.encode_rn(p.clip.other_pos, s.pos_step, 0)
+        coords_q = coords_rec = None
         if s.use_coords:
             x = coordinates(model_q, p.clip.local_rot[:, inner])
-            mats.append(lifting.encode_rn(x, s.coord_step, s.lod_coords)[0])
+            coords_q, coords_rec = lifting.encode_rn(x, s.coord_step, s.lod_coords)
+        if s.eff_mode == 1 and coords_rec is not None:
+            # residual of the true root-frame effector positions against those the coded pose gives
+            problem = make_problem(p.motion.skeleton, model_q, p.effectors, other_rec)
+            resid = p.eff_local - problem.forward(coords_rec)[0]
+            mats.append(lifting.encode_rn(resid.reshape(n, -1), s.pos_step, s.lod_effectors)[0])
+        else:
+            mats.append(lifting.encode_rn(p.eff_global.reshape(n, -1), s.pos_step, s.lod_effectors)[0])
+        if coords_q is not None:
+            mats.append(coords_q)
         if p.clip.other_pos.shape[1]:
-            mats.append(lifting.encode_rn(p.clip.other_pos, s.pos_step, 0)[0])
+            mats.append(other_q)
         sections["data"] = pack_matrices(mats)
     if p.outliers:
         sections["outl"] = encode_outliers(p.motion, p.outliers)

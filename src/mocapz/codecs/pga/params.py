@@ -23,6 +23,9 @@ class PGASettings:
         lod_effectors: levels dropped from the end-effector trajectories.
         lod_coords: levels dropped from the coded geodesic coordinates (the IK's prior / warm start).
         use_coords: code the geodesic coordinates too (beyond the paper: the IK then starts from them).
+        eff_mode: 0 = end-effector trajectories coded globally (the paper); 1 = coded in the root frame as
+            the residual against the effector positions the coded coordinates already give (needs
+            ``use_coords``; much smaller, but root errors then move the feet too).
         pos_step: quantisation step of root and effector positions.
         rot_step: quantisation step of the root orientation details.
         coord_step: quantisation step of the geodesic coordinates (radians).
@@ -41,6 +44,7 @@ class PGASettings:
     lod_effectors: int = 2
     lod_coords: int = 2
     use_coords: bool = True
+    eff_mode: int = 0
     pos_step: float = 0.01
     rot_step: float = 1e-3
     coord_step: float = 5e-3
@@ -62,11 +66,13 @@ class PGASettings:
         for name in ("pos_step", "rot_step", "coord_step", "mean_step"):
             if not getattr(self, name) > 0:
                 raise OptionError(f"{name} must be positive")
+        if self.eff_mode not in (0, 1) or (self.eff_mode == 1 and not self.use_coords):
+            raise OptionError("eff_mode 1 (root-frame effector residuals) needs coded coordinates")
         if not 2 <= self.basis_bits <= 24:
             raise OptionError(f"basis bits must be 2..24, got {self.basis_bits}")
 
     # --------------------------------------------------------------- bytes
-    _INTS = ("k", "lod_root", "lod_effectors", "lod_coords", "use_coords", "basis_bits", "iterations")
+    _INTS = ("k", "lod_root", "lod_effectors", "lod_coords", "use_coords", "eff_mode", "basis_bits", "iterations")
     _FLOATS = ("pos_step", "rot_step", "coord_step", "mean_step", "lam_temporal", "lam_prior")
 
     def to_bytes(self) -> bytes:
