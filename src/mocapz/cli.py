@@ -190,7 +190,10 @@ def eval_cmd(original: Path, decoded: Path, as_json: bool) -> None:
 
     orig = load(original)
     dec = _load_any(decoded)
-    rep = evaluate(orig, dec).as_dict()
+    try:
+        rep = evaluate(orig, dec).as_dict()
+    except MocapzError as exc:
+        raise MocapzError(f"{decoded}: {exc}") from None
     if decoded.suffix.lower() == ".mcz":
         rep.update(size_figures(orig, decoded.stat().st_size))
     if as_json:
@@ -236,3 +239,7 @@ def main(argv: list[str] | None = None) -> None:
         click.echo(f"mocapz: internal error: {type(exc).__name__}: {exc} (please report)", err=True)
         sys.exit(1)
     sys.exit(0)
+
+
+if __name__ == "__main__":  # pragma: no cover
+    main()

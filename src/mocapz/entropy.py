@@ -83,17 +83,32 @@ def pack_uint64(values: np.ndarray) -> bytes:
     return write_uvarint(u.size) + bytes([nbytes]) + body
 
 
+def safe_zstd_decompress(data: bytes, limit: int, what: str) -> bytes:
+    """zstd-decompress at most ``limit`` bytes; a frame claiming more is corrupt (FormatError), never a
+    huge allocation."""
+    try:
+        size = zstandard.get_frame_parameters(data).content_size
+    except zstandard.ZstdError as exc:
+        raise FormatError(None, f"corrupted {what} ({exc})") from None
+    if size != zstandard.CONTENTSIZE_UNKNOWN and size > limit:
+        raise FormatError(None, f"corrupted {what} (claims {size} bytes, at most {limit} expected)")
+    try:
+        out = zstandard.ZstdDecompressor().decompress(data, max_output_size=limit)
+    except zstandard.ZstdError as exc:
+        raise FormatError(None, f"corrupted {what} ({exc})") from None
+    return out
+
+
 def unpack_uint64(buf: bytes) -> np.ndarray:
     n, pos = read_uvarint(buf, 0)
     if pos >= len(buf):
         raise FormatError(None, "truncated integer stream")
+    if n > 1 << 31:
+        raise FormatError(None, "corrupted integer stream (absurd count)")
     nbytes = buf[pos]
     if not 1 <= nbytes <= 8:
         raise FormatError(None, "corrupted integer stream (bad byte width)")
-    try:
-        raw = zstandard.ZstdDecompressor().decompress(bytes(buf[pos + 1 :]), max_output_size=n * nbytes + 16)
-    except zstandard.ZstdError as exc:
-        raise FormatError(None, f"corrupted integer stream ({exc})") from None
+    raw = safe_zstd_decompress(bytes(buf[pos + 1 :]), n * nbytes, "integer stream")
     if len(raw) != n * nbytes:
         raise FormatError(None, "corrupted integer stream (wrong length)")
     planes = np.frombuffer(raw, dtype=np.uint8).reshape(nbytes, n)

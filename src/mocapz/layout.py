@@ -125,13 +125,38 @@ def encode_layout(motion: AnyMotion) -> bytes:
 
 def decode_layout(data: bytes) -> dict[str, Any]:
     try:
+        size = zstandard.get_frame_parameters(data).content_size
+        if size == zstandard.CONTENTSIZE_UNKNOWN or size > 1 << 26:
+            raise FormatError(None, "corrupted layout header (implausible size)")
         text = zstandard.ZstdDecompressor(dict_data=_DICT).decompress(data, max_output_size=1 << 26)
         d = json.loads(text)
     except (zstandard.ZstdError, ValueError, UnicodeDecodeError) as exc:
         raise FormatError(None, f"corrupted layout header ({exc})") from None
     if not isinstance(d, dict) or d.get("kind") not in ("skeleton", "markers"):
         raise FormatError(None, "corrupted layout header (unknown kind)")
+    _check_layout(d)
     return d
+
+
+def _check_layout(d: dict[str, Any]) -> None:
+    """Reject layouts whose numbers would make decoders allocate absurdly or divide by zero."""
+    try:
+        frames = int(d["frames"])
+        rate = float(d["frame_rate"])
+        width = len(d["names"]) if d["kind"] == "skeleton" else len(d["labels"])
+        if d["kind"] == "skeleton":
+            n = len(d["names"])
+            if any(not 0 <= int(j) < n for j, _, _ in d["end_sites"]):
+                raise FormatError(None, "corrupted layout header (end site on an unknown joint)")
+            dec = d.get("decimals")
+            if dec is not None and any(not 0 <= int(x) <= 15 for x in dec):
+                raise FormatError(None, "corrupted layout header (decimals out of range)")
+    except (KeyError, TypeError, ValueError) as exc:
+        raise FormatError(None, f"corrupted layout header ({exc})") from None
+    if not 0 <= frames <= 1 << 28 or frames * max(width, 1) * 6 > 1 << 33:
+        raise FormatError(None, f"corrupted layout header (implausible frame count {frames})")
+    if not (rate > 0 and np.isfinite(rate)):
+        raise FormatError(None, f"corrupted layout header (frame rate {rate})")
 
 
 def empty_motion(layout: dict[str, Any], values: np.ndarray) -> AnyMotion:

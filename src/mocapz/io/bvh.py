@@ -30,14 +30,14 @@ CMU_JOINTS = {"Hips", "LHipJoint", "LeftUpLeg", "LowerBack", "Spine1", "LeftHand
 class _Tokens:
     """Whitespace tokens of the HIERARCHY section with their line numbers."""
 
-    def __init__(self, lines: list[str], path: Path) -> None:
+    def __init__(self, lines: list[str], path: Path, first_line: int = 1) -> None:
         self.items: list[tuple[str, int]] = []
-        for i, line in enumerate(lines, start=1):
+        for i, line in enumerate(lines, start=first_line):
             for tok in line.split():
                 self.items.append((tok, i))
         self.pos = 0
         self.path = path
-        self.last_line = len(lines)
+        self.last_line = first_line + len(lines) - 1
 
     def next(self, what: str) -> tuple[str, int]:
         if self.pos >= len(self.items):
@@ -73,7 +73,7 @@ def read_bvh(path: str | os.PathLike[str]) -> Motion:
         raise FormatError(path, "not a BVH file (first line is not HIERARCHY)", 1)
     if motion_line is None:
         raise FormatError(path, "no MOTION section (truncated file?)", len(lines))
-    skeleton = _parse_hierarchy(_Tokens(lines[1:motion_line], path), path, line_base=1)
+    skeleton = _parse_hierarchy(_Tokens(lines[1:motion_line], path, first_line=2), path)
     channels, frame_time = _parse_motion(lines, motion_line, skeleton.n_channels, path)
     _set_units(skeleton)
     return Motion(
@@ -87,7 +87,7 @@ def read_bvh(path: str | os.PathLike[str]) -> Motion:
     )
 
 
-def _parse_hierarchy(tok: _Tokens, path: Path, line_base: int) -> Skeleton:
+def _parse_hierarchy(tok: _Tokens, path: Path) -> Skeleton:
     names: list[str] = []
     parents: list[int] = []
     offsets: list[np.ndarray] = []
@@ -96,7 +96,7 @@ def _parse_hierarchy(tok: _Tokens, path: Path, line_base: int) -> Skeleton:
     end_sites: list[tuple[int, np.ndarray, str]] = []
 
     def fix(line: int) -> int:
-        return line + line_base
+        return line
 
     word, line = tok.next("ROOT")
     if word.upper() != "ROOT":

@@ -31,6 +31,8 @@ def decode(sections: dict[str, bytes], layout: dict[str, Any]) -> Any:
     cols, groups = _groups(layout)
     try:
         rep = sections["rep"][0]
+        if rep not in (0, 1, 2):
+            raise FormatError(None, f"corrupted lossless stream (unknown representation {rep})")
         x = _decode_ints(sections, frames, cols, groups)
     except KeyError as exc:
         raise FormatError(None, f"corrupted lossless stream (missing section {exc})") from None
@@ -46,7 +48,7 @@ def decode(sections: dict[str, bytes], layout: dict[str, Any]) -> Any:
         gaps = np.unpackbits(bits)[: frames * cols].astype(bool).reshape(frames, cols)
         values = np.where(gaps, np.nan, values)
     if layout["kind"] == "markers":
-        values = values.reshape(frames, -1, 3)
+        values = values.reshape(frames, cols // 3, 3)
     return empty_motion(layout, values)
 
 

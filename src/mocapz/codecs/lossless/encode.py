@@ -21,7 +21,7 @@ def value_matrix(motion: AnyMotion) -> tuple[np.ndarray, np.ndarray | None]:
     """``(frames, columns)`` values with gaps filled (for prediction), and the gap mask or None."""
     if isinstance(motion, Motion):
         return motion.channels, None
-    pos = motion.positions.reshape(motion.n_frames, -1)
+    pos = motion.positions.reshape(motion.n_frames, 3 * motion.n_markers)
     gaps = ~np.isfinite(pos)
     if not gaps.any():
         return pos, None
@@ -56,7 +56,8 @@ def encode(motion: AnyMotion, **options: object) -> dict[str, bytes]:
     if frames == 0:
         return sections
     const = (x == x[0]).all(axis=0)
-    sections["head"] = pack_uint64(zigzag(np.concatenate([x[0], (x[1] - x[0])[~const] if frames > 1 else []])))
+    d1 = (x[1] - x[0])[~const] if frames > 1 else np.zeros(0, dtype=np.int64)
+    sections["head"] = pack_uint64(zigzag(np.concatenate([x[0], d1])))
     sections["const"] = pack_uint64(np.packbits(const).astype(np.uint64))
     if frames <= 2 or const.all():
         return sections

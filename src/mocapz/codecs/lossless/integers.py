@@ -22,7 +22,8 @@ def to_integers(values: np.ndarray, decimals: np.ndarray | None) -> tuple[int, n
         ints = np.round(values * scale).astype(np.int64)
         if np.array_equal(ints / scale, values):
             return REP_DECIMAL, ints
-    f32 = values.astype(np.float32)
+    with np.errstate(over="ignore", invalid="ignore"):
+        f32 = values.astype(np.float32)
     if np.array_equal(f32.astype(np.float64), values, equal_nan=True):
         bits = f32.view(np.uint32).astype(np.int64)
         neg = bits >= (1 << 31)

@@ -126,6 +126,22 @@ def make_problem(skeleton: Skeleton, model: PGAModel, effectors: np.ndarray, oth
     return problem
 
 
+def decode_rows(skeleton: Skeleton, s: PGASettings, sections: dict[str, bytes], n: int,
+                rows: np.ndarray) -> np.ndarray:
+    """Channels ``(len(rows), C)`` of some kept frames only (the IK is per frame when the temporal
+    regulariser is off, so this equals those rows of the full decode; rate control uses it to check
+    candidates quickly)."""
+    d = decode_streams(skeleton, s, sections, n)
+    if s.lam_temporal > 0:
+        return rebuild(skeleton, d, s, d.targets)[rows]
+    trans = d.problem.trans[rows] if d.problem.trans.ndim == 3 else d.problem.trans
+    problem = IKProblem(skeleton, d.model, d.effectors, d.problem.rest_rot, trans, d.problem.scale)
+    problem.other = d.problem.other[rows]  # type: ignore[attr-defined]
+    sub = Decoded(d.model, d.effectors, problem, d.root_pos[rows], d.root_rot[rows], d.targets[rows],
+                  None if d.coords is None else d.coords[rows])
+    return rebuild(skeleton, sub, s, sub.targets)
+
+
 def decode_kept(skeleton: Skeleton, s: PGASettings, sections: dict[str, bytes], n: int,
                 edit: dict[int, np.ndarray] | None = None) -> np.ndarray:
     d = decode_streams(skeleton, s, sections, n)

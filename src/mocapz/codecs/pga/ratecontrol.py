@@ -20,7 +20,7 @@ from ...kinematics import forward_kinematics
 from ...metrics import distortion_pct
 from ...motion import Motion
 from ...units import parse_length
-from .decode import decode_channels
+from .decode import decode_channels, decode_rows
 from .encode import Prepared, encode_prepared, prepare
 from .model import k_for_variance
 from .params import PGASettings
@@ -126,20 +126,40 @@ def default_settings(p: Prepared, fixed: dict[str, Any], options: dict[str, Any]
     return s.replace(**fixed)
 
 
-def evaluate_settings(p: Prepared, s: PGASettings) -> tuple[dict[str, bytes], int, float, float]:
-    """Encode, decode with the real decoder, and measure: (sections, bytes, distortion_pct, max_err)."""
+def evaluate_settings(p: Prepared, s: PGASettings, rows: np.ndarray | None = None
+                      ) -> tuple[dict[str, bytes], int, float, float]:
+    """Encode, decode with the real decoder, and measure: (sections, bytes, distortion_pct, max_err).
+
+    With ``rows`` (indices of kept frames) only those frames are decoded and measured: an estimate used
+    while searching; the final choice is always checked on every frame.
+    """
     sections = encode_prepared(p, s)
     size = sum(len(v) + 2 for v in sections.values())
     sk = p.motion.skeleton
-    ch = decode_channels(sk, PGASettings.from_bytes(sections["params"]), sections, p.motion.n_frames)
-    a = p.reference_positions if hasattr(p, "reference_positions") else None
-    if a is None:
-        a = forward_kinematics(sk, p.motion.channels)[0]
-        p.reference_positions = a  # type: ignore[attr-defined]
+    s_dec = PGASettings.from_bytes(sections["params"])
+    if rows is None:
+        ch = decode_channels(sk, s_dec, sections, p.motion.n_frames)
+        a = _reference(p, None)
+    else:
+        ch = decode_rows(sk, s_dec, sections, len(p.kept), rows)
+        a = _reference(p, rows)
     b = forward_kinematics(sk, ch)[0]
     d = distortion_pct(a, b)
     e = float(np.linalg.norm(a - b, axis=-1).max()) if a.size else 0.0
     return sections, size, d, e
+
+
+_REF: dict[tuple[int, int], np.ndarray] = {}
+
+
+def _reference(p: Prepared, rows: np.ndarray | None) -> np.ndarray:
+    """Original positions of all frames, or of the given kept frames (cached on the Prepared object)."""
+    cache = p.__dict__.setdefault("_ref_cache", {})
+    key = -1 if rows is None else int(rows.size)
+    if key not in cache:
+        ch = p.motion.channels if rows is None else p.motion.channels[p.kept[rows]]
+        cache[key] = forward_kinematics(p.motion.skeleton, ch)[0]
+    return cache[key]
 
 
 def _moves(s: PGASettings, fixed: dict[str, Any], k_min: int) -> list[tuple[str, Callable[[], PGASettings]]]:
@@ -193,15 +213,22 @@ def search(p: Prepared, fixed: dict[str, Any], target: Target) -> tuple[dict[str
         )
     best = start
     log = [f"start k={start.k} size={best_size} d={d:.4g} e={e:.4g}"]
+    n = len(p.kept)
+    stride = max(1, n // 300)
+    rows = np.arange(0, n, stride) if stride > 1 else None
+    margin = 0.97 if rows is not None else 1.0  # estimates on a frame subset keep a little headroom
+    tight = Target(None if target.max_distortion is None else target.max_distortion * margin,
+                   None if target.max_error is None else target.max_error * margin)
     failed: set[str] = set()  # moves that broke the target are not tried again (errors grow monotonically)
+    history = [best]
     while True:
         trials = []
         for name, make in _moves(best, fixed, 1):
             if name in failed:
                 continue
             cand = make()
-            sec, size, dd, ee = evaluate_settings(p, cand)
-            if not target.met(dd, ee):
+            sec, size, dd, ee = evaluate_settings(p, cand, rows)
+            if not tight.met(dd, ee):
                 failed.add(name)
             elif size < best_size:
                 trials.append((size, name, cand, sec, dd, ee))
@@ -209,5 +236,15 @@ def search(p: Prepared, fixed: dict[str, Any], target: Target) -> tuple[dict[str
             break
         size, name, cand, sec, dd, ee = min(trials, key=lambda t: (t[0], t[1]))
         best, best_size, best_sections = cand, size, sec
-        log.append(f"{name}: size={size} d={dd:.4g} e={ee:.4g}")
+        history.append(best)
+        log.append(f"{name}: size={size} d={dd:.4g} e={ee:.4g}" + (" (frame subset)" if rows is not None else ""))
+    if rows is not None:
+        # check on every frame; step back along the path taken until the target holds
+        for cand in reversed(history):
+            sec, size, dd, ee = evaluate_settings(p, cand)
+            if target.met(dd, ee):
+                best, best_sections = cand, sec
+                log.append(f"checked on all frames: size={size} d={dd:.4g} e={ee:.4g}")
+                break
+            log.append(f"all frames: d={dd:.4g} e={ee:.4g} misses the target, stepping back")
     return best_sections, best, log

@@ -1,0 +1,5 @@
+"""``python -m mocapz``: the command line."""
+
+from .cli import main
+
+main()
