@@ -57,7 +57,9 @@ def positions_pair(original: AnyMotion, decoded: AnyMotion) -> tuple[np.ndarray,
         from .kinematics import forward_kinematics
 
         if decoded.n_frames != original.n_frames:
-            raise MocapzError(f"decoded motion has shape ({decoded.n_frames} frames), original {original.n_frames} frames")
+            raise MocapzError(
+                f"decoded motion has shape ({decoded.n_frames} frames), original {original.n_frames} frames"
+            )
         a = forward_kinematics(original.skeleton, original.channels)[0]
         if decoded.skeleton.channel_labels() == original.skeleton.channel_labels():
             # METRICS.md: the decoded channels through the ORIGINAL skeleton

@@ -75,3 +75,7 @@ def _patterns() -> CodecInfo:
 
 register("pga", _pga)
 register("patterns", _patterns)
+register("subsample", lambda: __import__("mocapz.codecs.baselines.subsample", fromlist=["INFO"]).INFO)
+register("pca", lambda: __import__("mocapz.codecs.baselines.pca", fromlist=["INFO"]).INFO)
+register("segpca", lambda: __import__("mocapz.codecs.baselines.segpca", fromlist=["INFO"]).INFO)
+register("quant", lambda: __import__("mocapz.codecs.baselines.quant", fromlist=["INFO"]).INFO)
