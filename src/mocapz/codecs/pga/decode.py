@@ -19,6 +19,7 @@ from .pipeline import (
     channels_from_rotations,
     dequantise_model,
     inner_joints,
+    model_from_matrices,
     position_columns,
     skeleton_scale,
     targets_in_root_frame,
@@ -27,7 +28,7 @@ from .pipeline import (
 
 
 def stream_count(s: PGASettings, n_other: int) -> int:
-    return 4 + int(s.use_coords) + int(n_other > 0)
+    return 5 + int(s.use_coords) + int(n_other > 0)
 
 
 def decode(sections: dict[str, bytes], layout: dict[str, Any]) -> Any:
@@ -65,10 +66,9 @@ def decode_outliers(data: bytes, count: int, n_channels: int) -> np.ndarray:
     from ...entropy import unpack_uint64, unzigzag
 
     raw = unzigzag(unpack_uint64(data))
-    if raw.size != count * n_channels + n_channels:
+    if raw.size != count * n_channels + 1 or not 0 <= raw[0] <= 9:
         raise FormatError(None, "corrupted PGA stream (outlier frames)")
-    dec = raw[:n_channels]
-    return raw[n_channels:].reshape(count, n_channels) / 10.0 ** dec
+    return raw[1:].reshape(count, n_channels) / 10.0 ** int(raw[0])
 
 
 @dataclass
@@ -87,15 +87,21 @@ class Decoded:
 def decode_streams(skeleton: Skeleton, s: PGASettings, sections: dict[str, bytes], n: int) -> Decoded:
     inner = inner_joints(skeleton)
     _, other_cols = position_columns(skeleton)
-    effectors = np.asarray(s.effectors, dtype=np.int64) if s.effectors else find_effectors(skeleton)
+    if s.eff_mode == 2:
+        effectors = np.zeros(0, dtype=np.int64)
+    else:
+        effectors = np.asarray(s.effectors, dtype=np.int64) if s.effectors else find_effectors(skeleton)
     mats = unpack_matrices(sections["data"], stream_count(s, other_cols.size))
-    model = dequantise_model(mats[0], inner, s.k, s.basis_bits, s.mean_step)
-    root_pos = lifting.decode_rn(mats[1], n, s.pos_step, s.lod_root)
-    root_rot = lifting.decode_so3(mats[2], n, s.rot_step, s.lod_root)
-    eff = lifting.decode_rn(mats[3], n, s.pos_step, s.lod_effectors).reshape(n, -1, 3)
+    model = dequantise_model(model_from_matrices(mats[0], mats[1]), inner, s.k, s.basis_bits, s.mean_step)
+    root_pos = lifting.decode_rn(mats[2], n, s.pos_step, s.lod_root)
+    root_rot = lifting.decode_so3(mats[3], n, s.rot_step, s.lod_root)
+    if s.eff_mode == 2:
+        eff = np.zeros((n, 0, 3))
+    else:
+        eff = lifting.decode_rn(mats[4], n, s.pos_step, s.lod_effectors).reshape(n, -1, 3)
     if eff.shape[1] != len(effectors):
         raise FormatError(None, "corrupted PGA stream (effector count)")
-    pos = 4
+    pos = 5
     coords = None
     if s.use_coords:
         coords = lifting.decode_rn(mats[pos], n, s.coord_step, s.lod_coords)
@@ -159,8 +165,11 @@ def rebuild(skeleton: Skeleton, d: Decoded, s: PGASettings, targets: np.ndarray)
     model = d.model
     root_cols, other_cols = position_columns(skeleton)
     x0 = d.coords if d.coords is not None else np.zeros((n, model.k))
-    x = solve(d.problem, targets, x0, x_prior=d.coords, lam_temporal=s.lam_temporal,
-              lam_prior=s.lam_prior if d.coords is not None else 0.0, iterations=s.iterations)
+    if len(d.effectors) == 0 or s.iterations == 0:
+        x = x0
+    else:
+        x = solve(d.problem, targets, x0, x_prior=d.coords, lam_temporal=s.lam_temporal,
+                  lam_prior=s.lam_prior if d.coords is not None else 0.0, iterations=s.iterations)
     if not np.isfinite(x).all():  # pragma: no cover - solve() keeps finite values
         x = np.nan_to_num(x0)
     local = np.broadcast_to(np.eye(3), (n, skeleton.n_joints, 3, 3)).copy()

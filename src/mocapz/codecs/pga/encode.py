@@ -21,6 +21,7 @@ from .pipeline import (
     check_skeleton,
     coordinates,
     inner_joints,
+    model_matrices,
     pack_matrices,
     quantise_model,
     targets_in_root_frame,
@@ -91,7 +92,7 @@ def encode_prepared(p: Prepared, s: PGASettings) -> dict[str, bytes]:
         s.validate(p.full_model.basis.shape[0], n)
         ints, model_q = quantise_model(p.full_model, s.k, s.basis_bits, s.mean_step)
         inner = model_q.joints
-        mats = [ints]
+        mats = model_matrices(ints, len(model_q.joints), s.k)
         mats.append(lifting.encode_rn(p.clip.root_pos, s.pos_step, s.lod_root)[0])
         mats.append(lifting.encode_so3(p.clip.root_rot, s.rot_step, s.lod_root)[0])
         other_q, other_rec = lifting.encode_rn(p.clip.other_pos, s.pos_step, 0)
@@ -99,7 +100,9 @@ def encode_prepared(p: Prepared, s: PGASettings) -> dict[str, bytes]:
         if s.use_coords:
             x = coordinates(model_q, p.clip.local_rot[:, inner])
             coords_q, coords_rec = lifting.encode_rn(x, s.coord_step, s.lod_coords)
-        if s.eff_mode == 1 and coords_rec is not None:
+        if s.eff_mode == 2:
+            mats.append(np.zeros((1, 0), dtype=np.int64))
+        elif s.eff_mode == 1 and coords_rec is not None:
             # residual of the true root-frame effector positions against those the coded pose gives
             problem = make_problem(p.motion.skeleton, model_q, p.effectors, other_rec)
             resid = p.eff_local - problem.forward(coords_rec)[0]
@@ -117,11 +120,11 @@ def encode_prepared(p: Prepared, s: PGASettings) -> dict[str, bytes]:
 
 
 def encode_outliers(motion: Motion, frames: list[int]) -> bytes:
-    """Outlier frames' channels exactly at the source's decimals (4 when unknown)."""
-    dec = motion.decimals if motion.decimals is not None else np.full(motion.skeleton.n_channels, 4)
-    dec = np.minimum(dec, 6)
+    """Outlier frames' channels exactly at the source's precision: integers at the largest decimal count of
+    any column (4 when unknown), which represents every column exactly."""
+    dec = int(min(motion.decimals.max(), 9)) if motion.decimals is not None and motion.decimals.size else 4
     vals = np.round(motion.channels[frames] * 10.0**dec).astype(np.int64)
-    return pack_uint64(zigzag(np.concatenate([dec, vals.ravel()])))
+    return pack_uint64(zigzag(np.concatenate([[dec], vals.ravel()])))
 
 
 def encode(motion: Motion, **options: Any) -> dict[str, bytes]:

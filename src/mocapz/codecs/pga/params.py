@@ -25,7 +25,9 @@ class PGASettings:
         use_coords: code the geodesic coordinates too (beyond the paper: the IK then starts from them).
         eff_mode: 0 = end-effector trajectories coded globally (the paper); 1 = coded in the root frame as
             the residual against the effector positions the coded coordinates already give (needs
-            ``use_coords``; much smaller, but root errors then move the feet too).
+            ``use_coords``; much smaller, but root errors then move the feet too); 2 = no end effectors at
+            all: the pose is the coded coordinates (needs ``use_coords``; rate control picks it when the
+            bytes buy more as geodesics and finer coordinates than as IK targets).
         pos_step: quantisation step of root and effector positions.
         rot_step: quantisation step of the root orientation details.
         coord_step: quantisation step of the geodesic coordinates (radians).
@@ -66,8 +68,8 @@ class PGASettings:
         for name in ("pos_step", "rot_step", "coord_step", "mean_step"):
             if not getattr(self, name) > 0:
                 raise OptionError(f"{name} must be positive")
-        if self.eff_mode not in (0, 1) or (self.eff_mode == 1 and not self.use_coords):
-            raise OptionError("eff_mode 1 (root-frame effector residuals) needs coded coordinates")
+        if self.eff_mode not in (0, 1, 2) or (self.eff_mode > 0 and not self.use_coords):
+            raise OptionError("effector modes 1 and 2 need coded coordinates")
         if not 2 <= self.basis_bits <= 24:
             raise OptionError(f"basis bits must be 2..24, got {self.basis_bits}")
 

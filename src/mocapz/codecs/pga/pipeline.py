@@ -99,6 +99,19 @@ def quantise_model(model: PGAModel, k: int, basis_bits: int, mean_step: float) -
     return ints[:, None], dequantise_model(ints[:, None], model.joints, k, basis_bits, mean_step, model.variance)
 
 
+def model_matrices(ints: np.ndarray, n: int, k: int) -> list[np.ndarray]:
+    """Split the model's integers into a header column (flags, mean, sigmas) and the loadings as a
+    ``(3m, k)`` matrix, so the entropy coder adapts its scale to each direction."""
+    flat = ints.ravel()
+    head = flat[: 4 * n + k]
+    return [head[:, None], flat[4 * n + k :].reshape(k, -1).T]
+
+
+def model_from_matrices(head: np.ndarray, loadings: np.ndarray) -> np.ndarray:
+    """Inverse of :func:`model_matrices`."""
+    return np.concatenate([head.ravel(), loadings.T.ravel()])[:, None]
+
+
 def dequantise_model(ints: np.ndarray, joints: np.ndarray, k: int, basis_bits: int, mean_step: float,
                      variance: np.ndarray | None = None) -> PGAModel:
     """Rebuild the (loadings) model from :func:`quantise_model`'s integers."""

@@ -177,6 +177,8 @@ def _moves(s: PGASettings, fixed: dict[str, Any], k_min: int) -> list[tuple[str,
             add("k*0.75", k=int(s.k * 0.75))
     if s.use_coords and s.eff_mode == 0:
         add("eff_mode=1", eff_mode=1)
+    if s.use_coords and s.eff_mode != 2:
+        add("eff_mode=2", eff_mode=2)
     for lod in ("lod_root", "lod_effectors", "lod_coords"):
         if getattr(s, lod) < 6:
             add(f"{lod}+1", **{lod: getattr(s, lod) + 1})
