@@ -20,6 +20,7 @@ from .errors import MocapzError
 # when given, so every codec validates its own options.
 CODEC_OPTIONS: dict[str, tuple[Any, str]] = {
     "geodesics": (int, "PGA: number of principal geodesics k (default: chosen by the encoder)"),
+    "variance": (float, "PGA: without --geodesics, keep the geodesics explaining this share (default 0.995)"),
     "lod_root": (int, "PGA: levels of detail dropped from the root trajectory"),
     "lod_effectors": (int, "PGA: levels of detail dropped from the end-effector trajectories"),
     "effectors": (str, "PGA: comma-separated end-effector joint names (default: the tree's extremities)"),
