@@ -13,7 +13,9 @@ from typing import Any
 import numpy as np
 import zstandard
 
+from .entropy import read_uvarint, unzigzag, write_uvarint, zigzag
 from .errors import FormatError
+from .io.common import detect_decimals
 from .motion import AnyMotion, MarkerMotion, Motion
 from .skeleton import Skeleton
 
@@ -118,24 +120,70 @@ def layout_dict(motion: AnyMotion) -> dict[str, Any]:
 
 
 def encode_layout(motion: AnyMotion) -> bytes:
-    text = json.dumps(layout_dict(motion), separators=(",", ":"), sort_keys=False).encode()
-    return zstandard.ZstdCompressor(level=19, dict_data=_DICT, write_checksum=False,
-                                    write_content_size=True, write_dict_id=False).compress(text)
+    """Layout bytes: ``uvarint n``, ``n`` bytes of zstd JSON (raw-content dictionary), then a numeric block.
+
+    For skeletons whose offsets have a finite decimal count ``q`` (BVH text, ASF), the joint and end-site
+    offsets leave the JSON (``"offsets": null``, ``"num_dec": q``) and follow as zig-zag varints of
+    ``round(value * 10**q)``, joints then end sites, x y z each: a zero costs one byte.
+    """
+    d = layout_dict(motion)
+    block = b""
+    if isinstance(motion, Motion):
+        sk = motion.skeleton
+        nums = np.concatenate([sk.offsets.ravel()] + [np.asarray(o, dtype=np.float64) for _, o, _ in sk.end_sites])
+        dec = detect_decimals(nums[:, None]) if nums.size else np.zeros(1, dtype=np.int64)
+        if dec is not None and int(dec[0]) <= 9:
+            q = int(dec[0])
+            ints = np.round(nums * 10.0**q).astype(np.int64)
+            d["offsets"] = None
+            d["end_sites"] = [[j, n] for j, _, n in d["end_sites"]]
+            d["num_dec"] = q
+            block = b"".join(write_uvarint(int(z)) for z in zigzag(ints))
+    text = json.dumps(d, separators=(",", ":"), sort_keys=False).encode()
+    z = zstandard.ZstdCompressor(level=19, dict_data=_DICT, write_checksum=False,
+                                 write_content_size=True, write_dict_id=False).compress(text)
+    return write_uvarint(len(z)) + z + block
 
 
 def decode_layout(data: bytes) -> dict[str, Any]:
+    n, pos = read_uvarint(data, 0)
+    z, block = data[pos : pos + n], data[pos + n :]
+    if len(z) != n:
+        raise FormatError(None, "truncated layout header")
     try:
-        size = zstandard.get_frame_parameters(data).content_size
+        size = zstandard.get_frame_parameters(z).content_size
         if size == zstandard.CONTENTSIZE_UNKNOWN or size > 1 << 26:
             raise FormatError(None, "corrupted layout header (implausible size)")
-        text = zstandard.ZstdDecompressor(dict_data=_DICT).decompress(data, max_output_size=1 << 26)
+        text = zstandard.ZstdDecompressor(dict_data=_DICT).decompress(z, max_output_size=1 << 26)
         d = json.loads(text)
     except (zstandard.ZstdError, ValueError, UnicodeDecodeError) as exc:
         raise FormatError(None, f"corrupted layout header ({exc})") from None
     if not isinstance(d, dict) or d.get("kind") not in ("skeleton", "markers"):
         raise FormatError(None, "corrupted layout header (unknown kind)")
+    if d["kind"] == "skeleton" and "num_dec" in d:
+        _unpack_offsets(d, block)
+    elif block:
+        raise FormatError(None, "corrupted layout header (trailing bytes)")
     _check_layout(d)
     return d
+
+
+def _unpack_offsets(d: dict[str, Any], block: bytes) -> None:
+    try:
+        joints, ends, q = len(d["names"]), d["end_sites"], int(d["num_dec"])
+        count = 3 * (joints + len(ends))
+        vals, pos = [], 0
+        for _ in range(count):
+            v, pos = read_uvarint(block, pos)
+            vals.append(v)
+    except (KeyError, TypeError, ValueError) as exc:
+        raise FormatError(None, f"corrupted layout header ({exc})") from None
+    if pos != len(block) or not 0 <= q <= 9:
+        raise FormatError(None, "corrupted layout header (offset block)")
+    nums = unzigzag(np.asarray(vals, dtype=np.uint64)) / 10.0**q
+    d["offsets"] = nums[: 3 * joints].reshape(joints, 3).tolist()
+    d["end_sites"] = [[j, nums[3 * joints + 3 * i : 3 * joints + 3 * i + 3].tolist(), name]
+                      for i, (j, name) in enumerate(ends)]
 
 
 def _check_layout(d: dict[str, Any]) -> None:
