@@ -79,10 +79,20 @@ def test_byte_layout_as_documented(small: bytes, clip: Motion) -> None:
     assert small[6 + n] == 1  # lossless codec version
     ln, pos = _uvarint(small, 7 + n)
     layout = small[pos : pos + ln]
-    assert layout[:4] == b"\x28\xb5\x2f\xfd"  # a zstd frame
-    text = zstandard.ZstdDecompressor(dict_data=_DICT).decompress(layout)
+    zlen, zpos = _uvarint(layout, 0)
+    assert layout[zpos : zpos + 4] == b"\x28\xb5\x2f\xfd"  # a zstd frame
+    text = zstandard.ZstdDecompressor(dict_data=_DICT).decompress(layout[zpos : zpos + zlen])
     d = json.loads(text)
     assert d["kind"] == "skeleton" and d["frames"] == 20 and d["names"] == clip.skeleton.names
+    # offsets travel as zig-zag varints of round(value * 10**num_dec) after the JSON
+    assert d["offsets"] is None and d["num_dec"] == 5
+    block = layout[zpos + zlen :]
+    vals, bpos = [], 0
+    while bpos < len(block):
+        v, bpos = _uvarint(block, bpos)
+        vals.append((v >> 1) ^ -(v & 1))
+    assert len(vals) == 3 * (clip.skeleton.n_joints + len(clip.skeleton.end_sites))
+    assert np.array_equal(np.array(vals[: 3 * clip.skeleton.n_joints]).reshape(-1, 3) / 1e5, clip.skeleton.offsets)
     assert d["channels"][0] == "XposYposZposZrotYrotXrot" and d["orders"][1] == "ZYX"
     pos += ln
     count, pos = _uvarint(small, pos)

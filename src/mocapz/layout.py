@@ -180,6 +180,7 @@ def _unpack_offsets(d: dict[str, Any], block: bytes) -> None:
         raise FormatError(None, f"corrupted layout header ({exc})") from None
     if pos != len(block) or not 0 <= q <= 9:
         raise FormatError(None, "corrupted layout header (offset block)")
+    del d["num_dec"]
     nums = unzigzag(np.asarray(vals, dtype=np.uint64)) / 10.0**q
     d["offsets"] = nums[: 3 * joints].reshape(joints, 3).tolist()
     d["end_sites"] = [[j, nums[3 * joints + 3 * i : 3 * joints + 3 * i + 3].tolist(), name]
