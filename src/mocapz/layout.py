@@ -45,7 +45,8 @@ _SHORT = {"Xposition": "Xpos", "Yposition": "Ypos", "Zposition": "Zpos",
 _LONG = {v: k for k, v in _SHORT.items()}
 
 # metadata keys carried through compression (a writer may need them)
-_KEEP_META = ("frame_time", "file_bytes", "first_frame", "c3d_first_frame", "trc_header", "amc_header")
+_KEEP_META = ("frame_time", "file_bytes", "first_frame", "trc_header", "amc_header", "amc_first_frame",
+              "trc_path_fields", "trc_newline", "trc_blank_line", "trc_trailing_tab", "trc_time_decimals")
 
 
 def _num(v: float) -> float | int:

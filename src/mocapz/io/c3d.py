@@ -6,9 +6,10 @@ labels, units and rate, the point residuals and descriptions in ``MarkerMotion.m
 :func:`write_c3d` puts them back. Other parameter groups (events, force platforms, subjects) are not
 carried over.
 
-Before ezc3d sees a file its 512-byte header is checked here (key byte, processor type, parameter
-section and data size against the file size): ezc3d silently reads a truncated file as a shorter
-clip, and raises bare C++ errors on garbage; both become :class:`FormatError`.
+Before ezc3d sees a file it is checked here (header key and processor type, every parameter record,
+the parameters ezc3d indexes blindly, the data size against the file size): ezc3d segfaults on some
+corrupt parameter sections, silently reads a truncated file as a shorter clip and raises bare C++
+errors on garbage; all of these become :class:`FormatError`.
 """
 
 from __future__ import annotations
@@ -30,6 +31,7 @@ C3D_KEY = 0x50  # second byte of every C3D file
 BLOCK = 512
 PROCESSORS = {84: "<", 85: "<", 86: ">"}  # Intel, DEC (little-endian words), MIPS (big-endian)
 FLOAT32_MAX = float(np.finfo(np.float32).max)
+MAX_FRAMES = 65535  # ezc3d writes POINT:FRAMES and the header frame numbers as 16-bit integers
 # Parameters ezc3d reads as ``values[0]`` without checking that they hold a value.
 SCALAR_PARAMS = [("POINT", n) for n in ("USED", "FRAMES", "RATE", "SCALE", "DATA_START")] + [
     ("ANALOG", n) for n in ("USED", "RATE", "GEN_SCALE")]
@@ -98,31 +100,14 @@ def read_c3d(path: str | os.PathLike[str]) -> MarkerMotion:
     path = Path(path)
     header = check_c3d_file(path)
     c3d = _load(path)
-    points = np.asarray(c3d["data"]["points"], dtype=np.float64)
-    residuals = np.asarray(c3d["data"]["meta_points"]["residuals"], dtype=np.float64)[0].T.copy()
-    _check_frame_count(c3d, points.shape[2], path)
-    positions = points[:3].transpose(2, 1, 0).copy()  # (3, markers, frames) -> (frames, markers, 3)
-    missing = (residuals < 0) | ~np.isfinite(positions).all(axis=2)
-    positions[missing] = np.nan
-    residuals[missing] = -1.0
+    positions, residuals = _point_data(c3d, path)
     params = c3d["parameters"]
-    n_markers = positions.shape[1]
     units = _first_string(params, "POINT", "UNITS")
-    metadata: dict[str, Any] = {
-        "path": str(path),
-        "file_bytes": path.stat().st_size,
-        "first_frame": int(c3d["header"]["points"]["first_frame"]) + 1,
-        "residuals": residuals,
-        "point_scale": _first_number(params, "POINT", "SCALE", -1.0),
-        "point_descriptions": _fit(_strings(params, "POINT", "DESCRIPTIONS"), n_markers, ""),
-        "c3d_float": header.is_float,
-        "c3d_processor": header.processor,
-    }
+    metadata = _metadata(path, c3d, header, residuals)
     if units is None:
         metadata["units_note"] = "POINT:UNITS missing; millimetres assumed (the C3D default)"
-    metadata.update(_analog_metadata(c3d, params))
     return MarkerMotion(
-        labels=_fit(_strings(params, "POINT", "LABELS"), n_markers, None),
+        labels=_fit(_strings(params, "POINT", "LABELS"), positions.shape[1], None),
         positions=positions,
         frame_rate=_point_rate(c3d, params, path),
         units=units or "mm",
@@ -131,6 +116,34 @@ def read_c3d(path: str | os.PathLike[str]) -> MarkerMotion:
         decimals=None,
         metadata=metadata,
     )
+
+
+def _point_data(c3d: Any, path: Path) -> tuple[np.ndarray, np.ndarray]:
+    """Positions ``(frames, markers, 3)`` with NaN gaps and residuals ``(frames, markers)`` (-1 = gap)."""
+    points = np.asarray(c3d["data"]["points"], dtype=np.float64)
+    residuals = np.asarray(c3d["data"]["meta_points"]["residuals"], dtype=np.float64)[0].T.copy()
+    _check_frame_count(c3d, points.shape[2], path)
+    positions = points[:3].transpose(2, 1, 0).copy()  # (3, markers, frames) -> (frames, markers, 3)
+    missing = (residuals < 0) | ~np.isfinite(positions).all(axis=2)
+    positions[missing] = np.nan
+    residuals[missing] = -1.0
+    return positions, residuals
+
+
+def _metadata(path: Path, c3d: Any, header: C3DHeader, residuals: np.ndarray) -> dict[str, Any]:
+    params = c3d["parameters"]
+    meta: dict[str, Any] = {
+        "path": str(path),
+        "file_bytes": path.stat().st_size,
+        "first_frame": int(c3d["header"]["points"]["first_frame"]) + 1,
+        "residuals": residuals,
+        "point_scale": _first_number(params, "POINT", "SCALE", -1.0),
+        "point_descriptions": _fit(_strings(params, "POINT", "DESCRIPTIONS"), residuals.shape[1], ""),
+        "c3d_float": header.is_float,
+        "c3d_processor": header.processor,
+    }
+    meta.update(_analog_metadata(c3d, params))
+    return meta
 
 
 def check_c3d_file(path: Path) -> C3DHeader:
@@ -254,6 +267,8 @@ def _record_body(section: bytes, pos: int, is_param: bool, stop: int) -> C3DPara
             return None
         kind, n_dims = struct.unpack("bB", section[pos:pos + 2])
         if kind not in (-1, 1, 2, 4) or n_dims > 7 or pos + 2 + n_dims > stop:
+            return None
+        if kind == -1 and n_dims == 0:  # ezc3d indexes the first dimension of a char parameter
             return None
         dims = tuple(section[pos + 2:pos + 2 + n_dims])
         n_bytes = abs(kind) * int(np.prod(dims, dtype=np.int64))
@@ -397,11 +412,12 @@ def _first_number(params: Any, group: str, name: str, default: float) -> float:
 
 
 def _fit(values: list[str], n: int, fill: str | None) -> list[str]:
-    """``n`` entries: ``values`` cut or padded (``fill=None`` pads with ``*<index>`` names)."""
-    out = list(values[:n])
-    for i in range(len(out), n):
-        out.append(f"*{i + 1}" if fill is None else fill)
-    return out
+    """``n`` entries: ``values`` cut or padded with ``fill``; ``fill=None`` (labels) names an empty or
+    absent entry ``*<number>``, as the TRC reader names unnamed columns."""
+    out = [str(v) for v in values[:n]] + [""] * max(n - len(values), 0)
+    if fill is not None:
+        return [v if i < len(values) else fill for i, v in enumerate(out)]
+    return [v or f"*{i + 1}" for i, v in enumerate(out)]
 
 
 def _point_rate(c3d: Any, params: Any, path: Path) -> float:
@@ -461,7 +477,7 @@ def _build(motion: MarkerMotion, path: Path) -> Any:
         point["DESCRIPTIONS"]["value"] = [str(s) for s in descriptions]
     c3d["data"]["points"] = pts
     c3d["data"]["meta_points"] = {"residuals": _residuals(motion, missing).T[None].copy()}
-    c3d["header"]["points"]["first_frame"] = max(int(motion.metadata.get("first_frame", 1)) - 1, 0)
+    c3d["header"]["points"]["first_frame"] = _first_frame(motion) - 1
     _set_analogs(c3d, motion, path)
     return c3d
 
@@ -469,6 +485,9 @@ def _build(motion: MarkerMotion, path: Path) -> Any:
 def _check_writable(motion: MarkerMotion, path: Path) -> None:
     if motion.n_frames == 0:
         raise FormatError(path, "cannot write a C3D without frames")
+    if motion.n_frames > MAX_FRAMES:
+        raise FormatError(path, f"{motion.n_frames} frames: ezc3d writes the C3D frame count in 16 bits "
+                                f"(at most {MAX_FRAMES} frames); split the clip or write TRC")
     if motion.n_markers == 0:
         raise FormatError(path, "cannot write a C3D without markers")
     if not (motion.frame_rate > 0 and np.isfinite(motion.frame_rate)):
@@ -479,6 +498,15 @@ def _check_writable(motion: MarkerMotion, path: Path) -> None:
     bad = [s for s in motion.labels if not str(s).isascii()]
     if bad:
         raise FormatError(path, f"C3D labels must be ASCII, got {bad[0]!r}")
+
+
+def _first_frame(motion: MarkerMotion) -> int:
+    """1-based number of the first frame, if the 16-bit C3D header can hold it (else 1)."""
+    try:
+        first = int(motion.metadata.get("first_frame", 1))
+    except (TypeError, ValueError):
+        return 1
+    return first if 1 <= first <= MAX_FRAMES else 1
 
 
 def _metadata_scale(motion: MarkerMotion) -> float:
