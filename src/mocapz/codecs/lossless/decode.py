@@ -9,7 +9,7 @@ import numpy as np
 from ...entropy import decode_int_matrix, unpack_uint64, unzigzag
 from ...errors import FormatError
 from ...layout import empty_motion
-from .integers import REP_DECIMAL, from_integers
+from .integers import REP_DECIMAL, REPRESENTATIONS, from_integers
 from .predict import cross_term, predictor_columns
 
 
@@ -31,7 +31,7 @@ def decode(sections: dict[str, bytes], layout: dict[str, Any]) -> Any:
     cols, groups = _groups(layout)
     try:
         rep = sections["rep"][0]
-        if rep not in (0, 1, 2):
+        if rep not in REPRESENTATIONS:
             raise FormatError(None, f"corrupted lossless stream (unknown representation {rep})")
         x = _decode_ints(sections, frames, cols, groups)
     except KeyError as exc:
