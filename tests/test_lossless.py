@@ -13,7 +13,14 @@ from conftest import DATA, data_path
 
 import mocapz
 from mocapz import MarkerMotion, Motion, OptionError
-from mocapz.codecs.lossless.integers import REP_DECIMAL, REP_FLOAT32, REP_FLOAT64, from_integers, to_integers
+from mocapz.codecs.lossless.integers import (
+    REP_DECIMAL,
+    REP_FLOAT32,
+    REP_FLOAT64,
+    REP_SHORT_DECIMAL,
+    from_integers,
+    to_integers,
+)
 from mocapz.container import Container
 from mocapz.entropy import (
     CODER_RANGE,
@@ -253,7 +260,10 @@ def test_representations_are_exact_and_chosen_in_order() -> None:
     f32 = np.array([[0.1, -0.2]], dtype=np.float32).astype(np.float64)
     rep, ints = to_integers(f32, None)
     assert rep == REP_FLOAT32 and np.array_equal(from_integers(rep, ints, None), f32)
-    f64 = np.array([[0.1, -0.2]])
+    short = np.array([[0.1, -8.04084e-14, 123456.0, 1.5e-7]])  # %g text: few significant digits
+    rep, ints = to_integers(short, None)
+    assert rep == REP_SHORT_DECIMAL and np.array_equal(from_integers(rep, ints, None), short)
+    f64 = np.array([[0.1, np.pi]])
     rep, ints = to_integers(f64, None)
     assert rep == REP_FLOAT64 and np.array_equal(from_integers(rep, ints, None), f64)
 
