@@ -184,7 +184,10 @@ def info(file: Path, as_json: bool) -> None:
 @click.argument("original", type=click.Path(path_type=Path))
 @click.argument("decoded", type=click.Path(path_type=Path))
 @click.option("--json", "as_json", is_flag=True, help="print one JSON object")
-def eval_cmd(original: Path, decoded: Path, as_json: bool) -> None:
+@click.option("--plot", type=click.Path(path_type=Path), default=None,
+              help="also write per-point and over-time error plots (.png, .svg or .pdf; needs matplotlib)")
+@click.option("-f", "--force", is_flag=True, help="overwrite an existing --plot file")
+def eval_cmd(original: Path, decoded: Path, as_json: bool, plot: Path | None, force: bool) -> None:
     """Error figures (METRICS.md) of DECODED (motion file or .mcz) against ORIGINAL."""
     from .io import load
     from .metrics import evaluate, size_figures
@@ -195,6 +198,12 @@ def eval_cmd(original: Path, decoded: Path, as_json: bool) -> None:
         rep = evaluate(orig, dec).as_dict()
     except MocapzError as exc:
         raise MocapzError(f"{decoded}: {exc}") from None
+    if plot is not None:
+        from .plots import plot_errors
+
+        plot_errors(orig, dec, plot, force=force,
+                    compressed_bytes=decoded.stat().st_size if decoded.suffix.lower() == ".mcz" else None)
+        rep["plot"] = str(plot)
     if decoded.suffix.lower() == ".mcz":
         rep.update(size_figures(orig, decoded.stat().st_size))
     if as_json:
@@ -209,9 +218,19 @@ def eval_cmd(original: Path, decoded: Path, as_json: bool) -> None:
     fs = rep.get("foot_skate_cm_per_s")
     fs_cm = f"  ({fs:.4g} cm/s)" if fs is not None else ""
     click.echo(f"{'foot_skate':>16}: {_fmt(rep['foot_skate'])} units/s{fs_cm}")
-    for k in ("raw_bytes", "compressed_bytes", "ratio", "ratio_file", "bytes_per_second"):
+    for k in ("raw_bytes", "compressed_bytes", "ratio", "ratio_file", "bytes_per_second", "plot"):
         if k in rep:
             click.echo(f"{k:>16}: {_fmt(rep[k])}")
+
+
+def _register_commands() -> None:
+    """Commands that live in their own modules."""
+    from .cli_view import view
+
+    cli.add_command(view)
+
+
+_register_commands()
 
 
 def main(argv: list[str] | None = None) -> None:

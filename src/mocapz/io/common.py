@@ -73,10 +73,17 @@ def atomic_write(path: str | os.PathLike[str], write: Callable[[Path], None], fo
     tmp = Path(tmp_name)
     try:
         write(tmp)
+        os.chmod(tmp, 0o644 & ~_umask())
         os.replace(tmp, path)
     except BaseException:
         tmp.unlink(missing_ok=True)
         raise
+
+
+def _umask() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
 
 
 def read_text(path: str | os.PathLike[str]) -> str:

@@ -1,0 +1,15 @@
+"""See original and decoded motion together: a self-contained HTML player and GIF / MP4 animations.
+
+>>> from mocapz.viewer import prepare_view, write_page, render_animation
+>>> view = prepare_view(original, decoded, compression={"compressed_bytes": 2795, "codec": "pga"})
+>>> write_page(view, "page.html")
+>>> render_animation(view, "clip.gif")
+"""
+
+from __future__ import annotations
+
+from .data import ViewData, load_motion, prepare_view
+from .page import build_page, write_page
+from .render import render_animation, render_frame
+
+__all__ = ["ViewData", "build_page", "load_motion", "prepare_view", "render_animation", "render_frame", "write_page"]
