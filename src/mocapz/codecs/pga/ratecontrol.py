@@ -192,6 +192,16 @@ def _moves(s: PGASettings, fixed: dict[str, Any], k_min: int) -> list[tuple[str,
     return moves
 
 
+def _efficiency(saved: int, cur: tuple[float, float], new: tuple[float, float], target: Target) -> float:
+    """Bytes saved per fraction of the remaining error budget a move uses (moves that cost no error
+    come first)."""
+    used = 0.0
+    for limit, a, b in ((target.max_distortion, cur[0], new[0]), (target.max_error, cur[1], new[1])):
+        if limit is not None:
+            used = max(used, (b - a) / max(limit - a, 1e-12))
+    return saved / max(used, 1e-3)
+
+
 def search(p: Prepared, fixed: dict[str, Any], target: Target) -> tuple[dict[str, bytes], PGASettings, list[str]]:
     """Greedy rate control; returns the sections, the chosen settings and a log of the steps taken."""
     if p.full_model is None:
@@ -223,21 +233,39 @@ def search(p: Prepared, fixed: dict[str, Any], target: Target) -> tuple[dict[str
                    None if target.max_error is None else target.max_error * margin)
     failed: set[str] = set()  # moves that broke the target are not tried again (errors grow monotonically)
     history = [best]
+    cur = (d, e) if rows is None else evaluate_settings(p, best, rows)[2:]
+    stale: dict[str, float] = {}  # lazy greedy: last known efficiency of every move (an estimate)
     while True:
-        trials = []
-        for name, make in _moves(best, fixed, 1):
-            if name in failed:
-                continue
-            cand = make()
+        moves = {name: make for name, make in _moves(best, fixed, 1) if name not in failed}
+        order = sorted(moves, key=lambda nm: (-stale.get(nm, np.inf), nm))
+        accepted = None
+        for i, name in enumerate(order):
+            cand = moves[name]()
             sec, size, dd, ee = evaluate_settings(p, cand, rows)
             if not tight.met(dd, ee):
                 failed.add(name)
-            elif size < best_size:
-                trials.append((size, name, cand, sec, dd, ee))
-        if not trials:
-            break
-        size, name, cand, sec, dd, ee = min(trials, key=lambda t: (t[0], t[1]))
+                stale.pop(name, None)
+                continue
+            eff = _efficiency(best_size - size, cur, (dd, ee), tight) if size < best_size else -1.0
+            stale[name] = eff
+            rest = [stale.get(nm, np.inf) for nm in order[i + 1 :]]
+            if eff > 0 and eff >= max(rest, default=-np.inf):
+                accepted = (size, name, cand, sec, dd, ee)
+                break
+        if accepted is None:
+            # stale estimates may have hidden a good move: take the best fresh one, if any
+            fresh = [(v, nm) for nm, v in stale.items() if nm in moves and v > 0]
+            if not fresh:
+                break
+            name = max(fresh)[1]
+            cand = moves[name]()
+            sec, size, dd, ee = evaluate_settings(p, cand, rows)
+            if not (tight.met(dd, ee) and size < best_size):
+                break
+            accepted = (size, name, cand, sec, dd, ee)
+        size, name, cand, sec, dd, ee = accepted
         best, best_size, best_sections = cand, size, sec
+        cur = (dd, ee)
         history.append(best)
         log.append(f"{name}: size={size} d={dd:.4g} e={ee:.4g}" + (" (frame subset)" if rows is not None else ""))
     if rows is not None:
