@@ -225,9 +225,11 @@ def eval_cmd(original: Path, decoded: Path, as_json: bool, plot: Path | None, fo
 
 def _register_commands() -> None:
     """Commands that live in their own modules."""
+    from .cli_bench import bench
     from .cli_view import view
 
     cli.add_command(view)
+    cli.add_command(bench)
 
 
 _register_commands()

@@ -40,7 +40,12 @@ def decode(sections: dict[str, bytes], layout: dict[str, Any]) -> Any:
         channels = decode_channels(skeleton, settings, sections, frames)
     except KeyError as exc:
         raise FormatError(None, f"corrupted PGA stream (missing section {exc})") from None
-    return empty_motion(layout, channels)
+    motion = empty_motion(layout, channels)
+    # lossy values: write them with the source's finest precision (at least 4 decimals) in every column,
+    # not with per-column counts that fit the source's values only (a constant column may have 0)
+    if motion.decimals is not None:
+        motion.decimals = np.full_like(motion.decimals, max(4, int(motion.decimals.max(initial=0))))
+    return motion
 
 
 def decode_channels(skeleton: Skeleton, s: PGASettings, sections: dict[str, bytes], frames: int,

@@ -1,0 +1,195 @@
+"""Helpers shared by the baseline codecs: the value matrix they work on, gaps, angle wrapping, float32 I/O.
+
+Every baseline works on a ``(frames, columns)`` matrix of values:
+
+* skeletal :class:`~mocapz.Motion`: the channel values in the file's own units, rotation channels
+  unwrapped along time (no jumps of a full turn), so that interpolation and linear models see smooth
+  curves. Decoders wrap rotation channels back into ``[-180, 180)`` degrees (``[-pi, pi)`` radians): the
+  same rotations, written in the skeleton's own channels.
+* :class:`~mocapz.MarkerMotion`: the marker coordinates ``x, y, z`` of every marker (``columns = 3 *
+  markers``). Missing samples (gaps) are filled by linear interpolation in time for the codec's model,
+  the gap mask is stored apart, and decoders put NaN back exactly where the original had gaps.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from ...entropy import pack_uint64, read_uvarint, unpack_uint64, write_uvarint
+from ...errors import FormatError, OptionError
+from ...layout import empty_motion
+from ...motion import AnyMotion, Motion
+
+
+@dataclass
+class Values:
+    """The matrix a baseline codes.
+
+    Attributes:
+        x: ``(frames, columns)`` float64, finite (gaps filled, angles unwrapped).
+        gaps: ``(frames, markers)`` bool, True where a marker sample is missing; ``None`` for skeletons
+            and for marker data without gaps.
+        rotation: ``(columns,)`` bool, True for rotation channels (always False for markers).
+        period: a full turn in the file's angle unit (360 or 2 pi); 0 for markers.
+    """
+
+    x: np.ndarray
+    gaps: np.ndarray | None
+    rotation: np.ndarray
+    period: float
+
+
+def values_of(motion: AnyMotion) -> Values:
+    """The value matrix of a motion (see the module docstring)."""
+    if isinstance(motion, Motion):
+        sk = motion.skeleton
+        rot = sk.rotation_columns()
+        period = 360.0 if sk.angle_unit == "deg" else 2 * math.pi
+        x = motion.channels.copy()
+        if rot.any() and len(x) > 1:
+            x[:, rot] = np.unwrap(x[:, rot], period=period, axis=0)
+        return Values(x, None, rot, period)
+    pos = motion.positions.reshape(motion.n_frames, -1)
+    missing = motion.missing
+    gaps = missing if missing.any() else None
+    x = fill_gaps(pos, np.repeat(missing, 3, axis=1)) if gaps is not None else pos.copy()
+    return Values(x, gaps, np.zeros(x.shape[1], dtype=bool), 0.0)
+
+
+def fill_gaps(x: np.ndarray, missing: np.ndarray) -> np.ndarray:
+    """Fill missing samples ``(frames, columns)`` per column by linear interpolation in time.
+
+    Samples before the first / after the last observed one take its value; a column never observed is 0.
+    """
+    out = np.array(x, dtype=np.float64, copy=True)
+    t = np.arange(len(out), dtype=np.float64)
+    for c in np.flatnonzero(missing.any(axis=0)):
+        ok = ~missing[:, c]
+        out[:, c] = np.interp(t, t[ok], out[ok, c]) if ok.any() else 0.0
+    return out
+
+
+def layout_columns(layout: dict[str, Any]) -> tuple[int, np.ndarray, float]:
+    """Column count, rotation mask ``(columns,)`` and full-turn period from a container layout."""
+    if layout["kind"] == "skeleton":
+        names = [s[i : i + 4] for s in layout["channels"] for i in range(0, len(s), 4)]
+        rot = np.array([n.endswith("rot") for n in names], dtype=bool)
+        period = 360.0 if layout.get("angle_unit", "deg") == "deg" else 2 * math.pi
+        return len(names), rot, period
+    return 3 * len(layout["labels"]), np.zeros(3 * len(layout["labels"]), dtype=bool), 0.0
+
+
+def finish(layout: dict[str, Any], x: np.ndarray, gaps: np.ndarray | None, round_decimals: bool) -> AnyMotion:
+    """Decoded motion from a decoded value matrix ``(frames, columns)``.
+
+    Skeletons: rotation channels wrapped into ``[-half turn, half turn)``; with ``round_decimals`` and a
+    source whose decimals are known, every value is rounded to the largest of the source's decimal counts
+    (the file's precision; the decoded motion then says so), else the decoded motion's decimals are
+    unknown. Markers: NaN where ``gaps`` ``(frames, markers)`` is True.
+    """
+    frames = int(layout["frames"])
+    cols, rot, period = layout_columns(layout)
+    x = np.array(x, dtype=np.float64, copy=True).reshape(frames, cols)
+    if layout["kind"] == "skeleton":
+        if rot.any():
+            half = period / 2
+            x[:, rot] = np.mod(x[:, rot] + half, period) - half
+        motion = empty_motion(layout, x)
+        assert isinstance(motion, Motion)
+        dec = layout.get("decimals")
+        if round_decimals and dec is not None and len(dec):
+            d = int(max(dec))
+            motion.channels = np.round(motion.channels * 10.0**d) / 10.0**d
+            motion.decimals = np.full(cols, d, dtype=np.int64)
+        else:
+            motion.decimals = None
+        return motion
+    pos = x.reshape(frames, -1, 3)
+    if gaps is not None:
+        pos = np.where(gaps[..., None], np.nan, pos)
+    motion = empty_motion(layout, pos)
+    motion.decimals = None
+    return motion
+
+
+# ---------------------------------------------------------------- sections
+def gaps_bytes(gaps: np.ndarray) -> bytes:
+    """The gap mask ``(frames, markers)`` as packed bits, zstd-coded."""
+    return pack_uint64(np.packbits(gaps.ravel()).astype(np.uint64))
+
+
+def gaps_from(sections: dict[str, bytes], layout: dict[str, Any]) -> np.ndarray | None:
+    """The gap mask ``(frames, markers)`` stored by :func:`gaps_bytes`, or ``None``."""
+    if "gaps" not in sections or layout["kind"] != "markers":
+        return None
+    frames, markers = int(layout["frames"]), len(layout["labels"])
+    bits = unpack_uint64(sections["gaps"]).astype(np.uint8)
+    flat = np.unpackbits(bits)
+    if flat.size < frames * markers:
+        raise FormatError(None, "corrupted gap mask")
+    return flat[: frames * markers].astype(bool).reshape(frames, markers)
+
+
+def f32_bytes(a: np.ndarray) -> bytes:
+    """Little-endian float32 bytes of an array (row-major)."""
+    return np.ascontiguousarray(a, dtype="<f4").tobytes()
+
+
+def f32_array(data: bytes, shape: tuple[int, ...]) -> np.ndarray:
+    """Inverse of :func:`f32_bytes` as float64, checking the size."""
+    n = int(np.prod(shape)) if shape else 1
+    if len(data) != 4 * n:
+        raise FormatError(None, f"corrupted float32 block ({len(data)} bytes for {n} values)")
+    return np.frombuffer(data, dtype="<f4").astype(np.float64).reshape(shape)
+
+
+def uvarints(*values: int) -> bytes:
+    return b"".join(write_uvarint(int(v)) for v in values)
+
+
+def read_uvarints(data: bytes, count: int) -> tuple[list[int], int]:
+    out, pos = [], 0
+    for _ in range(count):
+        v, pos = read_uvarint(data, pos)
+        out.append(v)
+    return out, pos
+
+
+# ---------------------------------------------------------------- options
+def check_options(codec: str, options: dict[str, Any], known: dict[str, str]) -> None:
+    unknown = sorted(set(options) - set(known))
+    if unknown:
+        raise OptionError(f"unknown option(s) for the {codec} codec: {', '.join(unknown)} "
+                          f"(known: {', '.join(known)})")
+
+
+def int_option(options: dict[str, Any], name: str, default: int, lo: int, hi: int) -> int:
+    v = options.get(name)
+    if v is None:
+        return default
+    try:
+        f = float(v)
+    except (TypeError, ValueError):
+        raise OptionError(f"{name}: expected an integer, got {v!r}") from None
+    if not math.isfinite(f) or f != int(f) or not lo <= f <= hi:
+        raise OptionError(f"{name}: must be an integer between {lo} and {hi}, got {v!r}")
+    return int(f)
+
+
+def float_option(options: dict[str, Any], name: str, default: float, lo: float, hi: float,
+                 lo_open: bool = False) -> float:
+    v = options.get(name)
+    if v is None:
+        return default
+    try:
+        f = float(v)
+    except (TypeError, ValueError):
+        raise OptionError(f"{name}: expected a number, got {v!r}") from None
+    if not math.isfinite(f) or not (lo < f if lo_open else lo <= f) or f > hi:
+        bound = f"greater than {lo:g}" if lo_open else f"at least {lo:g}"
+        raise OptionError(f"{name}: must be {bound} and at most {hi:g}, got {v!r}")
+    return f

@@ -1,0 +1,133 @@
+"""Global PCA baseline (the pattern-indexing paper's baseline): one linear subspace for the whole clip.
+
+Encoder: the value matrix (:mod:`.common`) is put in common length units (:func:`column_scale`: rotation
+channels as radians times the skeleton's mean bone length, so a unit of every column moves a body point
+by about one file length unit), centred on its per-column mean, and projected on its first ``K``
+principal directions (SVD). Stored as **float32**, no entropy coding (as the papers' PCA baselines):
+the mean ``(columns,)``, the directions ``(K, columns)`` and the coefficients ``(frames, K)``.
+
+Options: ``variance``: fraction of the (scaled) variance to keep, ``0 < v <= 1`` (default 0.95), which
+chooses ``K``; or ``components``: ``K`` itself (takes precedence). ``variance=1`` keeps every component:
+exact up to float32.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from ...errors import FormatError
+from ...motion import AnyMotion, Motion
+from .. import CodecInfo
+from .common import (
+    check_options,
+    f32_array,
+    f32_bytes,
+    finish,
+    float_option,
+    gaps_bytes,
+    gaps_from,
+    int_option,
+    layout_columns,
+    read_uvarints,
+    uvarints,
+    values_of,
+)
+
+VERSION = 1
+OPTIONS = {
+    "variance": "fraction of the variance kept, 0 < v <= 1 (default 0.95)",
+    "components": "number of principal components K (overrides variance)",
+}
+DEFAULT_VARIANCE = 0.95
+
+
+def column_scale(layout: dict[str, Any]) -> np.ndarray:
+    """Per-column factor ``(columns,)`` putting values in length units before PCA.
+
+    Rotation channels: radians per angle unit times the mean non-zero bone length (offsets and end
+    sites) of the skeleton; position channels and marker coordinates: 1.
+    """
+    cols, rot, _ = layout_columns(layout)
+    scale = np.ones(cols)
+    if layout["kind"] == "skeleton" and rot.any():
+        offs = [np.asarray(o, dtype=np.float64) for o in layout["offsets"]]
+        offs += [np.asarray(o, dtype=np.float64) for _, o, _ in layout["end_sites"]]
+        lengths = np.linalg.norm(np.array(offs).reshape(-1, 3), axis=1)
+        lengths = lengths[lengths > 1e-9]
+        bone = float(lengths.mean()) if lengths.size else 1.0
+        per_unit = np.pi / 180.0 if layout.get("angle_unit", "deg") == "deg" else 1.0
+        scale[rot] = per_unit * bone
+    return scale
+
+
+def components_for(singular: np.ndarray, variance: float) -> int:
+    """Smallest K whose first K squared singular values hold ``variance`` of their sum (at least 1)."""
+    energy = singular.astype(np.float64) ** 2
+    total = energy.sum()
+    if total <= 0:
+        return 1
+    if variance >= 1.0:
+        return int(len(singular))
+    k = int(np.searchsorted(np.cumsum(energy) / total, variance - 1e-12) + 1)
+    return max(1, min(k, len(singular)))
+
+
+def fit(y: np.ndarray, variance: float, components: int | None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """PCA of ``y`` ``(frames, columns)``: float32-exact mean ``(columns,)``, basis ``(K, columns)`` and
+    coefficients ``(frames, K)`` (computed against the float32-rounded mean and basis)."""
+    mean = y.mean(axis=0) if len(y) else np.zeros(y.shape[1])
+    mean = mean.astype(np.float32).astype(np.float64)
+    centred = y - mean
+    if min(centred.shape) == 0:
+        return mean, np.zeros((0, y.shape[1])), np.zeros((len(y), 0))
+    _, s, vt = np.linalg.svd(centred, full_matrices=False)
+    k = min(components, len(s)) if components is not None else components_for(s, variance)
+    basis = vt[:k].astype(np.float32).astype(np.float64)
+    # least-squares coefficients against the rounded basis (stays optimal though it is not exactly orthonormal)
+    coef = np.linalg.lstsq(basis.T, centred.T, rcond=None)[0].T if k else np.zeros((len(y), 0))
+    return mean, basis, coef
+
+
+def scale_of(motion: AnyMotion) -> np.ndarray:
+    from ...layout import layout_dict
+
+    if isinstance(motion, Motion):
+        return column_scale(layout_dict(motion))
+    return np.ones(3 * motion.n_markers)
+
+
+def encode(motion: AnyMotion, **options: Any) -> dict[str, bytes]:
+    """Sections: ``head`` (K), ``mean``, ``basis``, ``coef`` (float32), ``gaps`` (markers with gaps)."""
+    check_options("pca", options, OPTIONS)
+    variance = float_option(options, "variance", DEFAULT_VARIANCE, 0.0, 1.0, lo_open=True)
+    comps = options.get("components")
+    k = None if comps is None else int_option(options, "components", 1, 1, 1_000_000)
+    v = values_of(motion)
+    scale = scale_of(motion)
+    mean, basis, coef = fit(v.x * scale, variance, k)
+    sections = {"head": uvarints(basis.shape[0]), "mean": f32_bytes(mean), "basis": f32_bytes(basis),
+                "coef": f32_bytes(coef)}
+    if v.gaps is not None:
+        sections["gaps"] = gaps_bytes(v.gaps)
+    return sections
+
+
+def decode(sections: dict[str, bytes], layout: dict[str, Any]) -> AnyMotion:
+    """Inverse of :func:`encode`: ``coef @ basis + mean``, unscaled."""
+    frames = int(layout["frames"])
+    cols, _, _ = layout_columns(layout)
+    try:
+        (k,), _ = read_uvarints(sections["head"], 1)
+        mean = f32_array(sections["mean"], (cols,))
+        basis = f32_array(sections["basis"], (k, cols))
+        coef = f32_array(sections["coef"], (frames, k))
+    except KeyError as exc:
+        raise FormatError(None, f"corrupted pca stream (missing section {exc})") from None
+    y = coef @ basis + mean
+    return finish(layout, y / column_scale(layout), gaps_from(sections, layout), round_decimals=True)
+
+
+INFO = CodecInfo(name="pca", version=VERSION, kinds=("skeleton", "markers"), encode=encode, decode=decode,
+                 options=OPTIONS)
