@@ -29,6 +29,8 @@ CODEC_OPTIONS: dict[str, tuple[Any, str]] = {
     "max_arms": (str, "patterns: target ARMS, file units or with a unit (6.5mm)"),
     "theta": (float, "patterns: segmentation threshold, relative to the head-marker size (ADDH)"),
     "bits": (int, "quantisation bits"),
+    "factor": (int, "subsample: keep every N-th frame"),
+    "components": (int, "pca / segpca: number of principal components"),
     "paper": (bool, "PGA: decode from end effectors alone, as in the paper (no coded coordinates)"),
     "hierarchy": (str, "patterns: JSON file giving the body-part hierarchy"),
     "weights": (str, "patterns: JSON file of per-marker weights"),
