@@ -79,21 +79,36 @@ def _codec_option_decorators(f: Any) -> Any:
 
 @cli.command()
 @click.argument("input", type=click.Path(path_type=Path))
-@click.option("-o", "--output", type=click.Path(path_type=Path), required=True, help="output .mcz file")
+@click.option("-o", "--output", type=click.Path(path_type=Path), required=True,
+              help="output .mcz file (a folder when INPUT is a folder)")
 @click.option("--codec", default="lossless", show_default=True, help="lossless, pga or patterns")
 @click.option("--asf", type=click.Path(path_type=Path), default=None, help="skeleton for an .amc input")
 @click.option("-f", "--force", is_flag=True, help="overwrite an existing output")
 @click.option("--json", "as_json", is_flag=True, help="print one JSON object")
+@click.option("-j", "--jobs", type=click.IntRange(min=1), default=None,
+              help="folder INPUT: worker processes (default: one per CPU; 1: serial)")
+@click.option("--scheduler", default=None, metavar="ADDRESS",
+              help="folder INPUT: run on a Dask cluster (tcp://host:8786), or 'local' for a LocalCluster on "
+                   "127.0.0.1 (needs pip install 'mocapz[dask]')")
 @_codec_option_decorators
 def compress(input: Path, output: Path, codec: str, asf: Path | None, force: bool, as_json: bool,
-             **codec_options: Any) -> None:
-    """Compress INPUT (.bvh, .amc, .c3d, .trc) into OUTPUT.mcz."""
+             jobs: int | None, scheduler: str | None, **codec_options: Any) -> None:
+    """Compress INPUT (.bvh, .amc, .c3d, .trc) into OUTPUT.mcz, or every clip under folder INPUT into folder
+    OUTPUT (one .mcz per clip, same layout; in parallel; exit code 1 if any clip failed)."""
     from .api import compress as do_compress
     from .io import load
     from .io.common import atomic_write
     from .metrics import size_figures
 
     options = {k: v for k, v in codec_options.items() if v is not None}
+    if input.is_dir():
+        if asf is not None:
+            raise MocapzError("--asf applies to one .amc file; in a folder each .amc uses the .asf beside it")
+        from .cli_batch import run_batch_compress
+
+        sys.exit(run_batch_compress(input, output, codec, options, jobs, scheduler, force, as_json))
+    if jobs is not None or scheduler is not None:
+        raise MocapzError("--jobs and --scheduler apply when INPUT is a folder")
     motion = load(input, asf) if asf else load(input)
     t0 = time.perf_counter()
     data = do_compress(motion, codec=codec, **options)

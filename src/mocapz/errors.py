@@ -28,6 +28,10 @@ class FormatError(MocapzError):
             where = f"{where}:{line}"
         super().__init__(f"{where}: {problem}")
 
+    def __reduce__(self) -> tuple[type, tuple[str | None, str, int | None]]:
+        # picklable across processes (parallel batch compression)
+        return (type(self), (self.path, self.problem, self.line))
+
 
 class OptionError(MocapzError):
     """An option or parameter is invalid (out of range, contradictory, unknown name...)."""
