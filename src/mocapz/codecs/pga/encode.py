@@ -28,11 +28,14 @@ from .pipeline import (
 )
 
 
-def detect_outliers(motion: Motion, factor: float = 2.0) -> list[int]:
-    """Frames whose pose is far from all others (e.g. the T-pose cgspeed files add as frame 1).
+def detect_outliers(motion: Motion, factor: float = 15.0) -> list[int]:
+    """Frames that are isolated spikes in pose space (e.g. the T-pose cgspeed files add as frame 1).
 
-    A frame is an outlier when its inner-joint pose is farther from the intrinsic mean than ``factor``
-    times the median distance and also that far from both its neighbours' poses (a spike, not a move).
+    With ``step(a, b)`` the geodesic distance between the inner-joint poses of frames ``a`` and ``b`` and
+    ``s`` its median over consecutive frames: an inner frame ``t`` is an outlier when ``step(t-1, t)`` and
+    ``step(t, t+1)`` both exceed ``factor * s`` while ``step(t-1, t+1)`` does not (its neighbours agree
+    with each other: a spike, not a fast move); the first (last) frame when its step to the next
+    (previous) exceeds ``factor * s`` and that frame's own next step is ordinary (under ``3 s``).
     """
     if motion.n_frames < 8:
         return []
@@ -41,17 +44,23 @@ def detect_outliers(motion: Motion, factor: float = 2.0) -> list[int]:
     from ...kinematics import local_rotations
 
     rot = local_rotations(sk, motion.channels)[:, inner]
-    mu = so3.karcher_mean(rot, iterations=5)
-    d = np.linalg.norm(so3.log(np.swapaxes(mu, -1, -2)[None] @ rot).reshape(len(rot), -1), axis=1)
-    step = np.linalg.norm(so3.log(np.swapaxes(rot[:-1], -1, -2) @ rot[1:]).reshape(len(rot) - 1, -1), axis=1)
-    med_d, med_step = float(np.median(d)), float(np.median(step))
+    n = len(rot)
+
+    def dist(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        return np.linalg.norm(so3.log(np.swapaxes(a, -1, -2) @ b).reshape(len(a), -1), axis=1)
+
+    step = dist(rot[:-1], rot[1:])
+    skip = dist(rot[:-2], rot[2:])
+    s = max(float(np.median(step)), 1e-9)
     out = []
-    for t in range(len(d)):
-        jumps = [step[t - 1]] if t > 0 else []
-        jumps += [step[t]] if t < len(step) else []
-        if d[t] > factor * med_d and min(jumps) > 10 * max(med_step, 1e-9):
-            out.append(t)
-    return out
+    if step[0] > factor * s and step[1] < 3 * s:
+        out.append(0)
+    big = step > factor * s
+    inner_t = np.flatnonzero(big[:-1] & big[1:] & (skip < factor * s)) + 1
+    out += [int(t) for t in inner_t]
+    if step[-1] > factor * s and step[-2] < 3 * s:
+        out.append(n - 1)
+    return sorted(set(out))
 
 
 @dataclass
