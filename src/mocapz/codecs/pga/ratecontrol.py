@@ -193,13 +193,13 @@ def _moves(s: PGASettings, fixed: dict[str, Any], k_min: int) -> list[tuple[str,
 
 
 def _efficiency(saved: int, cur: tuple[float, float], new: tuple[float, float], target: Target) -> float:
-    """Bytes saved per fraction of the remaining error budget a move uses (moves that cost no error
-    come first)."""
+    """Bytes saved per fraction of the remaining error budget a move uses. Moves using under a tenth of
+    the budget rank by bytes saved alone, so cheap small steps do not crowd out big savings."""
     used = 0.0
     for limit, a, b in ((target.max_distortion, cur[0], new[0]), (target.max_error, cur[1], new[1])):
         if limit is not None:
             used = max(used, (b - a) / max(limit - a, 1e-12))
-    return saved / max(used, 1e-3)
+    return saved / max(used, 0.1)
 
 
 def search(p: Prepared, fixed: dict[str, Any], target: Target) -> tuple[dict[str, bytes], PGASettings, list[str]]:
