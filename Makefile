@@ -28,6 +28,9 @@ test: $(STAMP)
 
 bench: $(STAMP)
 	$(BIN)/python bench/lossless.py
+	$(BIN)/python bench/pga.py --out docs/benchmarks/pga.md
+	$(BIN)/python bench/patterns.py
+	$(BIN)/python bench/run_all.py
 
 clean:
 	rm -rf $(VENV) out .pytest_cache

@@ -33,7 +33,8 @@ CODEC_OPTIONS: dict[str, tuple[Any, str]] = {
     "components": (int, "pca / segpca: number of principal components"),
     "paper": (bool, "PGA: decode from end effectors alone, as in the paper (no coded coordinates)"),
     "hierarchy": (str, "patterns: JSON file giving the body-part hierarchy"),
-    "weights": (str, "patterns: JSON file of per-marker weights"),
+    "weights": (str, "patterns: per-marker weights: JSON file or LABEL=VALUE[,LABEL=VALUE]"),
+    "tolerance": (float, "patterns: clustering threshold (MaxError bound), fraction of the ADDH"),
 }
 
 
@@ -141,6 +142,12 @@ def decompress(input: Path, output: Path, clip: str | None, force: bool, as_json
                           f"(expected one of {', '.join(MOTION_EXTENSIONS)})")
     data = _read_bytes(input)
     t0 = time.perf_counter()
+    if clip is None and input.suffix.lower() == ".mczdb":
+        from .library import Library
+
+        names = [c["name"] if isinstance(c, dict) else str(c) for c in Library.from_bytes(data, input).index["clips"]]
+        raise MocapzError(f"{input}: a library holds several clips; choose one with --clip "
+                          f"({', '.join(names[:10])}{', ...' if len(names) > 10 else ''})")
     if clip is not None:
         from .library import read_clip
 
@@ -243,10 +250,12 @@ def eval_cmd(original: Path, decoded: Path, as_json: bool, plot: Path | None, fo
 def _register_commands() -> None:
     """Commands that live in their own modules."""
     from .cli_bench import bench
+    from .cli_db import compress_db
     from .cli_view import view
 
     cli.add_command(view)
     cli.add_command(bench)
+    cli.add_command(compress_db)
 
 
 _register_commands()

@@ -25,7 +25,8 @@ from typing import Any
 import numpy as np
 
 from ...errors import OptionError
-from .hierarchy import Hierarchy, Node, _attach, _sorted
+from .hierarchy import Hierarchy, Node, topological
+from .marker_tree import attach_by_rigidity
 
 
 def _fail(path: Path, problem: str) -> OptionError:
@@ -99,7 +100,7 @@ def hierarchy_from_json(path: str | os.PathLike[str], member_names: list[str],
         parent = -1 if nd.get("parent") is None else node_index[nd["parent"]]
         nodes.append(Node(nd["name"], mem, parent, ref))
     try:
-        hier = _sorted(nodes)
+        hier = topological(nodes)
     except Exception as exc:  # noqa: BLE001 - a cycle between named parents
         raise _fail(p, str(exc).removeprefix("hierarchy: ")) from None
     rest = [i for i in range(len(member_names)) if i not in used]
@@ -125,7 +126,7 @@ def _attach_rest(hier: Hierarchy, rest: list[int], positions: np.ndarray | None,
             owner[j] = k
         return
     assert positions is not None
-    for u, k in _attach(rest, owner, positions).items():
+    for u, k in attach_by_rigidity(rest, owner, positions).items():
         if k <= 0:
             hier.nodes.append(Node(f"extra{u}", [u], 0, u))
         else:

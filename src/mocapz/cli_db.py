@@ -1,0 +1,73 @@
+"""``mocapz compress-db INPUT... -o LIBRARY.mczdb``: many clips into one pattern library.
+
+Registered in :mod:`mocapz.cli` with ``cli.add_command(compress_db)``. One clip is read back with
+``mocapz decompress LIBRARY.mczdb --clip NAME -o OUT`` and the clips are listed by ``mocapz info``.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+from typing import Any
+
+import click
+
+from .errors import OptionError
+
+
+def _weights(pairs: tuple[str, ...], weights_file: str | None) -> Any:
+    """Combine ``--weight LABEL=VALUE`` (repeatable) and ``--weights FILE`` into one option value."""
+    if pairs and weights_file:
+        raise OptionError("give either --weight LABEL=VALUE or --weights FILE, not both")
+    if pairs:
+        table = {}
+        for item in pairs:
+            label, sep, value = item.partition("=")
+            if not sep or not label.strip():
+                raise OptionError(f"--weight: expected LABEL=VALUE, got {item!r}")
+            table[label.strip()] = value.strip()
+        return table
+    return weights_file
+
+
+@click.command(name="compress-db")
+@click.argument("inputs", nargs=-1, required=True, type=click.Path(path_type=Path))
+@click.option("-o", "--output", type=click.Path(path_type=Path), required=True, help="output LIBRARY.mczdb")
+@click.option("-f", "--force", is_flag=True, help="overwrite an existing output")
+@click.option("--json", "as_json", is_flag=True, help="print one JSON object")
+@click.option("--max-arms", default=None, help="target ARMS for every clip, file units or with a unit (6.5mm)")
+@click.option("--max-distortion", type=float, default=None, help="target distortion_pct for every clip")
+@click.option("--theta", type=float, default=None, help="Algorithm 1 key-frame threshold, fraction of the ADDH")
+@click.option("--tolerance", type=float, default=None, help="clustering threshold (MaxError), fraction of the ADDH")
+@click.option("--bits", type=int, default=None, help="quantisation bits of the pattern deltas")
+@click.option("--hierarchy", default=None, help="JSON file giving the body-part hierarchy")
+@click.option("--weight", "weight_pairs", multiple=True, help="marker weight LABEL=VALUE (repeatable)")
+@click.option("--weights", "weights_file", default=None, help="JSON file of per-marker weights")
+def compress_db(inputs: tuple[Path, ...], output: Path, force: bool, as_json: bool, weight_pairs: tuple[str, ...],
+                weights_file: str | None, **codec_options: Any) -> None:
+    """Compress INPUT files (.bvh, .amc, .c3d, .trc) into one .mczdb library with shared pattern databases."""
+    from .io import load
+    from .io.common import atomic_write
+    from .library import compress_library
+
+    if output.suffix.lower() != ".mczdb":
+        raise OptionError(f"{output}: a library file must end in .mczdb")
+    options = {k: v for k, v in codec_options.items() if v is not None}
+    w = _weights(weight_pairs, weights_file)
+    if w is not None:
+        options["weights"] = w
+    motions = [load(p) for p in inputs]
+    t0 = time.perf_counter()
+    data = compress_library(motions, **options)
+    elapsed = time.perf_counter() - t0
+    atomic_write(output, lambda tmp: tmp.write_bytes(data), force=force)
+    raw = sum(m.raw_bytes for m in motions)
+    info = {"output": str(output), "clips": [m.name for m in motions], "frames": sum(m.n_frames for m in motions),
+            "raw_bytes": raw, "compressed_bytes": len(data), "ratio": raw / len(data),
+            "encode_s": elapsed}
+    if as_json:
+        click.echo(json.dumps(info))
+    else:
+        click.echo(f"{len(motions)} clips -> {output}: {len(data)} bytes, ratio {raw / len(data):.4g}, "
+                   f"{elapsed:.2f} s")

@@ -1,0 +1,106 @@
+"""Pattern decoder: root trajectory, then every node from its pattern database and segment stream."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from ...errors import FormatError
+from ...layout import empty_motion, skeleton_from_dict
+from .gaps import decode_mask
+from .heading import rotate
+from .hierarchy import Hierarchy
+from .pipeline import reconstruct
+from .quantise import decode_patterns, decode_trajectory
+from .segments import decode_segments
+from .skeletal import SkeletalFeatures
+
+FLAG_HEADING = 1
+
+
+def params_bytes(heading: bool, up: int) -> bytes:
+    """The small ``p`` section: flags and the vertical axis."""
+    return bytes([FLAG_HEADING if heading else 0, up])
+
+
+def decode(sections: dict[str, bytes], layout: dict[str, Any]) -> Any:
+    """Decode a single-clip ``.mcz`` payload into a Motion / MarkerMotion."""
+    hier = Hierarchy.from_bytes(_need(sections, "h"))
+    if int(layout["frames"]) == 0:
+        return decode_clip(layout, hier, sections, {})
+    dbs = {k: decode_patterns(_need(sections, f"d{k}"))[0] for k in range(1, len(hier.nodes))}
+    return decode_clip(layout, hier, sections, dbs)
+
+
+def _need(sections: dict[str, bytes], key: str) -> bytes:
+    if key not in sections:
+        raise FormatError(None, f"corrupted pattern stream (missing section {key!r})")
+    return sections[key]
+
+
+def decode_clip(layout: dict[str, Any], hier: Hierarchy, sections: dict[str, bytes],
+                dbs: dict[int, np.ndarray], priors: dict[int, np.ndarray] | None = None) -> Any:
+    """Rebuild one clip from its own sections and the decoded pattern databases of its nodes.
+
+    Args:
+        layout: the clip's layout dict (skeleton or marker labels, frame count...).
+        hier: the hierarchy.
+        sections: the clip's sections (``p``, ``r``, ``g``, ``c``, ``s<k>``).
+        dbs: node index -> decoded patterns ``(K, L, D)``.
+        priors: node index -> shared pattern usage counts (library mode), or None.
+    """
+    frames = int(layout["frames"])
+    if frames == 0:
+        shape = (0, len(layout["labels"]), 3) if layout["kind"] == "markers" else (0, _n_channels(layout))
+        return empty_motion(layout, np.zeros(shape))
+    if layout["kind"] == "markers":
+        return empty_motion(layout, _decode_markers(layout, hier, sections, dbs, priors, frames))
+    return empty_motion(layout, _decode_skeletal(layout, hier, sections, dbs, priors, frames))
+
+
+def _n_channels(layout: dict[str, Any]) -> int:
+    return sum(len(c) // 4 for c in layout["channels"])
+
+
+def _node_values(k: int, hier: Hierarchy, sections: dict[str, bytes], dbs: dict[int, np.ndarray],
+                 priors: dict[int, np.ndarray] | None, frames: int, observed: np.ndarray | None = None) -> np.ndarray:
+    patterns = dbs[k]
+    labels, lengths = decode_segments(_need(sections, f"s{k}"), len(patterns),
+                                      None if priors is None else priors.get(k))
+    if int(lengths.sum()) != frames:
+        raise FormatError(None, f"corrupted pattern stream (node {k} covers {int(lengths.sum())} of {frames} frames)")
+    return reconstruct(patterns, labels, lengths, observed)
+
+
+def _decode_markers(layout, hier, sections, dbs, priors, frames) -> np.ndarray:
+    m = len(layout["labels"])
+    flags, up = _need(sections, "p")[:2]
+    root, _ = decode_trajectory(_need(sections, "r"))
+    if root.shape[0] != frames:
+        raise FormatError(None, "corrupted pattern stream (root trajectory length)")
+    yaw = root[:, 3] if flags & FLAG_HEADING else None
+    missing = decode_mask(sections["g"], frames, m) if "g" in sections else None
+    out = np.zeros((frames, m, 3))
+    out[:, hier.nodes[0].reference] = root[:, :3]
+    for k, node in enumerate(hier.nodes[1:], start=1):
+        ref = hier.nodes[node.parent].reference
+        obs = None if missing is None or not missing[:, node.members].any() else ~missing[:, node.members]
+        x = _node_values(k, hier, sections, dbs, priors, frames, obs).reshape(frames, len(node.members), 3)
+        if yaw is not None:
+            x = rotate(x, yaw, up)
+        out[:, node.members] = x + out[:, ref][:, None]
+    if missing is not None:
+        out[missing] = np.nan
+    return out
+
+
+def _decode_skeletal(layout, hier, sections, dbs, priors, frames) -> np.ndarray:
+    sk = skeleton_from_dict(layout)
+    const = sections.get("c", b"")
+    sf = SkeletalFeatures(sk, 0.0, SkeletalFeatures.varying_from(const, sk.n_channels))
+    out = sf.apply_constants(np.zeros((frames, sk.n_channels)), const)
+    out[:, sf.root_columns] = sf.decode_root(_need(sections, "r"), frames)
+    for k, node in enumerate(hier.nodes[1:], start=1):
+        sf.put_node(out, node.members, _node_values(k, hier, sections, dbs, priors, frames))
+    return out

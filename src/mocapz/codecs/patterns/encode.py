@@ -1,0 +1,84 @@
+"""Pattern encoder for one clip: options -> settings (searched for a target) -> container sections."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from ...errors import OptionError
+from ...layout import layout_dict
+from ...motion import AnyMotion, MarkerMotion
+from ...units import parse_length
+from .bodies import CodedClips, code_clips
+from .decode import decode
+from .options import settings_from
+from .pipeline import Settings
+from .prepare import Prepared, prepare
+from .rate import Target, search
+
+
+def encode(motion: AnyMotion, **options: Any) -> dict[str, bytes]:
+    """Encode a motion with the pattern codec; returns the container sections.
+
+    See :mod:`.options` for the options. With ``max_arms`` or ``max_distortion`` the encoder searches its
+    thresholds and quantisation for the smallest output meeting the target, checked by decoding.
+    """
+    settings = settings_from(options)
+    prep = prepare(motion, options.get("hierarchy"), options.get("weights"))
+    target = target_from(motion, options)
+    if motion.n_frames == 0:
+        return {"h": prep.hier.to_bytes()}
+    if target is None:
+        return sections_of(code_once(motion, prep, settings), prep)
+    fixed = {k for k in ("tolerance", "bits") if options.get(k) is not None}
+
+    def run(s: Settings) -> tuple[list[np.ndarray], dict[str, bytes], int]:
+        coded = code_once(motion, prep, s)
+        sections = sections_of(coded, prep)
+        return coded.decoded, sections, total_bytes(sections)
+
+    def check(sections: dict[str, bytes]) -> float:
+        return target.score(motion, decode(sections, layout_dict(motion)))
+
+    return search(motion.name, [motion], settings, target, fixed, prep.addh, run, check)
+
+
+def target_from(motion: AnyMotion, options: dict[str, Any]) -> Target | None:
+    """The rate-control target from ``max_arms`` / ``max_distortion`` (None if neither is given)."""
+    arms = options.get("max_arms")
+    dist = options.get("max_distortion")
+    unit_cm = motion.unit_cm if isinstance(motion, MarkerMotion) else motion.skeleton.unit_cm
+    return Target(
+        arms=None if arms is None else parse_length(arms, unit_cm, "max_arms"),
+        distortion=None if dist is None else _percent(dist),
+    ) if (arms is not None or dist is not None) else None
+
+
+def _percent(value: Any) -> float:
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise OptionError(f"max_distortion: expected a percentage, got {value!r}") from None
+    if not np.isfinite(v) or v <= 0:
+        raise OptionError(f"max_distortion: must be a positive percentage, got {value!r}")
+    return v
+
+
+def code_once(motion: AnyMotion, prep: Prepared, settings: Settings) -> CodedClips:
+    return code_clips([motion], prep.hier, settings, prep.weights, prep.addh)
+
+
+def sections_of(coded: CodedClips, prep: Prepared) -> dict[str, bytes]:
+    """Container sections of a coded single clip: hierarchy, clip streams, node databases."""
+    out = {"h": prep.hier.to_bytes()}
+    out.update(coded.clip_sections[0])
+    for k, db in enumerate(coded.dbs[1:], start=1):
+        out[f"d{k}"] = db
+    return out
+
+
+def total_bytes(sections: dict[str, bytes]) -> int:
+    """Payload size of sections, counting each name and length field like the container does."""
+    return int(sum(len(v) + len(k) + 1 + max(1, (len(v).bit_length() + 6) // 7) for k, v in sections.items()))
+

@@ -1,0 +1,109 @@
+"""Pattern libraries (.mczdb): shared databases, one clip decoded alone, growth with repetition, CLI."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+from conftest import data_path
+
+from mocapz.cli import cli
+from mocapz.cli_db import compress_db
+from mocapz.codecs.patterns.options import settings_from
+from mocapz.codecs.patterns.prepare import prepare
+from mocapz.errors import FormatError, MocapzError, OptionError
+from mocapz.io import load
+from mocapz.library import Library, _build, compress_library, describe_library, read_clip
+from mocapz.metrics import evaluate
+
+CLIPS = ["cmu/bvh/09_06.bvh", "cmu/bvh/09_01.bvh", "cmu/bvh/02_03.bvh"]
+
+
+@pytest.fixture(scope="module")
+def runs() -> list:
+    return [load(data_path(p)) for p in CLIPS]
+
+
+def test_one_clip_decoded_alone_equals_library_decoding(runs) -> None:
+    prep = prepare(runs[0])
+    settings = settings_from({"bits": 3, "tolerance": 0.05})
+    lib, decoded = _build(runs, [m.name for m in runs], [([0, 1, 2], prep)], settings)
+    data = lib.to_bytes()
+    # drop every other clip's own streams: the chosen clip must not need them
+    alone = Library(lib.index, {k: v for k, v in lib.sections.items() if not k.startswith(("c0.", "c2."))})
+    for j in (1,):
+        clip = read_clip(alone.to_bytes(), runs[j].name)
+        np.testing.assert_allclose(clip.channels, decoded[j], atol=1e-9)
+        np.testing.assert_allclose(read_clip(data, runs[j].name).channels, clip.channels, atol=0)
+    for m in runs:
+        assert evaluate(m, read_clip(data, m.name)).arms_cm < 1.0
+
+
+def test_library_markers_keep_gaps() -> None:
+    m = load(data_path("cmu/c3d/01_01.c3d"))
+    a = m.with_positions(m.positions[:400])
+    b = m.with_positions(m.positions[400:800])
+    b.name = "second"
+    data = compress_library([a, b], bits=3, tolerance=0.05)
+    for clip in (a, b):
+        dec = read_clip(data, clip.name)
+        assert np.array_equal(dec.missing, clip.missing)
+        assert evaluate(clip, dec).arms < 8.0
+
+
+def test_ratio_grows_when_a_motion_type_repeats(runs) -> None:
+    one = runs[0]
+    copies = [one] * 4
+    single = compress_library([one], bits=3, tolerance=0.05)
+    many = compress_library(copies, bits=3, tolerance=0.05)
+    r1 = one.raw_bytes / len(single)
+    r4 = 4 * one.raw_bytes / len(many)
+    assert r4 > 1.5 * r1
+    assert describe_library_bytes(many)["clips"] == ["09_06", "09_06_2", "09_06_3", "09_06_4"]
+
+
+def describe_library_bytes(data: bytes) -> dict:
+    lib = Library.from_bytes(data)
+    return {"clips": [c["name"] for c in lib.index["clips"]]}
+
+
+def test_target_holds_for_every_clip(runs) -> None:
+    data = compress_library(runs[:2], max_distortion=1.5)
+    for m in runs[:2]:
+        assert evaluate(m, read_clip(data, m.name)).distortion_pct <= 1.5
+
+
+def test_bad_libraries_and_clips(tmp_path, runs) -> None:
+    data = compress_library(runs[:1], bits=3, tolerance=0.05)
+    with pytest.raises(MocapzError, match="no clip named 'walk'.*09_06"):
+        read_clip(data, "walk", "lib.mczdb")
+    with pytest.raises(FormatError, match="lib.mczdb"):
+        read_clip(data[:-10], "09_06", "lib.mczdb")
+    with pytest.raises(FormatError, match="not a mocapz library"):
+        read_clip(b"MCZ\x1a" + data[4:], "09_06", "x.mczdb")
+    with pytest.raises(OptionError):
+        compress_library([])
+    with pytest.raises(FormatError, match="no such file"):
+        describe_library(tmp_path / "missing.mczdb")
+
+
+def test_cli_compress_db_info_and_clip(tmp_path) -> None:
+    cli.add_command(compress_db)
+    runner = CliRunner()
+    lib = tmp_path / "runs.mczdb"
+    inputs = [str(data_path(p)) for p in CLIPS[:2]]
+    res = runner.invoke(cli, ["compress-db", *inputs, "-o", str(lib), "--bits", "3", "--tolerance", "0.05",
+                              "--weight", "LeftFoot=4", "--json"])
+    assert res.exit_code == 0, res.output
+    assert lib.exists()
+    info = describe_library(lib)
+    assert info["clips"] == ["09_06", "09_01"] and info["ratio"] > 10
+    out = tmp_path / "09_01.bvh"
+    res = runner.invoke(cli, ["decompress", str(lib), "--clip", "09_01", "-o", str(out)])
+    assert res.exit_code == 0, res.output
+    back = load(out)
+    assert back.n_frames == load(data_path(CLIPS[1])).n_frames
+    res = runner.invoke(cli, ["compress-db", *inputs, "-o", str(lib)])
+    assert res.exit_code != 0  # exists, no -f
+    res = runner.invoke(cli, ["compress-db", inputs[0], "-o", str(tmp_path / "x.mczdb"), "--weight", "Nose=2"])
+    assert res.exit_code != 0 and isinstance(res.exception, OptionError)
