@@ -42,12 +42,8 @@ class Container:
         out = bytearray(MAGIC)
         out += bytes([FORMAT_VERSION, len(name)]) + name + bytes([self.codec_version])
         out += write_uvarint(len(self.layout)) + self.layout
-        out += write_uvarint(len(self.sections))
-        for key, payload in self.sections.items():
-            k = key.encode("ascii")
-            out += bytes([len(k)]) + k + write_uvarint(len(payload)) + payload
-        out += struct.pack("<I", zlib.crc32(out) & 0xFFFFFFFF)
-        return bytes(out)
+        out += write_sections(self.sections)
+        return seal(out)
 
     @classmethod
     def from_bytes(cls, data: bytes, path: str | Path | None = None) -> Container:
@@ -79,19 +75,39 @@ class Container:
         ln, pos = read_uvarint(body, pos)
         layout = bytes(body[pos : pos + ln])
         pos += ln
-        count, pos = read_uvarint(body, pos)
-        sections: dict[str, bytes] = {}
-        for _ in range(count):
-            if pos >= len(body):
-                raise FormatError(None, "truncated .mcz sections")
-            k = body[pos]
-            key = bytes(body[pos + 1 : pos + 1 + k]).decode("ascii", errors="replace")
-            pos += 1 + k
-            m, pos = read_uvarint(body, pos)
-            if pos + m > len(body):
-                raise FormatError(None, f"truncated .mcz section {key!r}")
-            sections[key] = bytes(body[pos : pos + m])
-            pos += m
+        sections, pos = read_sections(body, pos, ".mcz")
         if pos != len(body) or len(layout) != ln:
             raise FormatError(None, "corrupted .mcz file (length mismatch)")
         return cls(codec, codec_version, layout, sections)
+
+
+def write_sections(sections: dict[str, bytes]) -> bytes:
+    """``uvarint count``, then per section: name length byte, ASCII name, uvarint length, payload."""
+    out = bytearray(write_uvarint(len(sections)))
+    for key, payload in sections.items():
+        k = key.encode("ascii")
+        out += bytes([len(k)]) + k + write_uvarint(len(payload)) + payload
+    return bytes(out)
+
+
+def read_sections(body: memoryview, pos: int, what: str) -> tuple[dict[str, bytes], int]:
+    """Inverse of :func:`write_sections` starting at ``pos``; returns the sections and the end position."""
+    count, pos = read_uvarint(body, pos)
+    sections: dict[str, bytes] = {}
+    for _ in range(count):
+        if pos >= len(body):
+            raise FormatError(None, f"truncated {what} sections")
+        k = body[pos]
+        key = bytes(body[pos + 1 : pos + 1 + k]).decode("ascii", errors="replace")
+        pos += 1 + k
+        m, pos = read_uvarint(body, pos)
+        if pos + m > len(body):
+            raise FormatError(None, f"truncated {what} section {key!r}")
+        sections[key] = bytes(body[pos : pos + m])
+        pos += m
+    return sections, pos
+
+
+def seal(out: bytes | bytearray) -> bytes:
+    """Append the CRC-32 (zlib, little endian) of everything before it."""
+    return bytes(out) + struct.pack("<I", zlib.crc32(out) & 0xFFFFFFFF)

@@ -46,7 +46,8 @@ from .codecs.patterns.prepare import Prepared, marker_addh, prepare
 from .codecs.patterns.quantise import decode_patterns
 from .codecs.patterns.rate import search
 from .codecs.patterns.skeletal import skeleton_addh
-from .entropy import pack_uint64, read_uvarint, unpack_uint64, write_uvarint
+from .container import read_sections, seal, write_sections
+from .entropy import pack_uint64, read_uvarint, safe_zstd_decompress, unpack_uint64, write_uvarint
 from .errors import FormatError, MocapzError, OptionError
 from .layout import decode_layout, encode_layout
 from .motion import AnyMotion, MarkerMotion
@@ -67,12 +68,8 @@ class Library:
         text = json.dumps(self.index, separators=(",", ":")).encode()
         head = zstandard.ZstdCompressor(level=19).compress(text)
         out = bytearray(MAGIC + bytes([FORMAT_VERSION]) + write_uvarint(len(head)) + head)
-        out += write_uvarint(len(self.sections))
-        for key, payload in self.sections.items():
-            k = key.encode("ascii")
-            out += bytes([len(k)]) + k + write_uvarint(len(payload)) + payload
-        out += struct.pack("<I", zlib.crc32(out) & 0xFFFFFFFF)
-        return bytes(out)
+        out += write_sections(self.sections)
+        return seal(out)
 
     @classmethod
     def from_bytes(cls, data: bytes, path: str | os.PathLike[str] | None = None) -> Library:
@@ -95,24 +92,11 @@ class Library:
         body = memoryview(data)[:-4]
         n, pos = read_uvarint(body, len(MAGIC) + 1)
         try:
-            index = json.loads(zstandard.ZstdDecompressor().decompress(bytes(body[pos : pos + n]),
-                                                                      max_output_size=1 << 26))
-        except (zstandard.ZstdError, ValueError, UnicodeDecodeError) as exc:
+            index = json.loads(safe_zstd_decompress(bytes(body[pos : pos + n]), 1 << 26, "library index"))
+        except (ValueError, UnicodeDecodeError) as exc:
             raise FormatError(None, f"corrupted library index ({exc})") from None
         pos += n
-        count, pos = read_uvarint(body, pos)
-        sections: dict[str, bytes] = {}
-        for _ in range(count):
-            if pos >= len(body):
-                raise FormatError(None, "truncated library sections")
-            k = body[pos]
-            key = bytes(body[pos + 1 : pos + 1 + k]).decode("ascii", errors="replace")
-            pos += 1 + k
-            m, pos = read_uvarint(body, pos)
-            if pos + m > len(body):
-                raise FormatError(None, f"truncated library section {key!r}")
-            sections[key] = bytes(body[pos : pos + m])
-            pos += m
+        sections, pos = read_sections(body, pos, "library")
         if pos != len(body) or not isinstance(index, dict) or "clips" not in index:
             raise FormatError(None, "corrupted library (length mismatch or bad index)")
         return cls(index, sections)
