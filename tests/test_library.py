@@ -107,3 +107,19 @@ def test_cli_compress_db_info_and_clip(tmp_path) -> None:
     assert res.exit_code != 0  # exists, no -f
     res = runner.invoke(cli, ["compress-db", inputs[0], "-o", str(tmp_path / "x.mczdb"), "--weight", "Nose=2"])
     assert res.exit_code != 0 and isinstance(res.exception, OptionError)
+
+
+def test_cli_compress_db_parallel_reads_and_bad_clip(tmp_path) -> None:
+    """Clips read by two worker processes give the same library bytes; a bad clip is reported and left out."""
+    runner = CliRunner()
+    inputs = [str(data_path(p)) for p in CLIPS[:2]]
+    serial, parallel = tmp_path / "s.mczdb", tmp_path / "p.mczdb"
+    assert runner.invoke(cli, ["compress-db", *inputs, "-o", str(serial)]).exit_code == 0
+    assert runner.invoke(cli, ["compress-db", *inputs, "-o", str(parallel), "--jobs", "2"]).exit_code == 0
+    assert serial.read_bytes() == parallel.read_bytes()
+    bad = tmp_path / "bad.bvh"
+    bad.write_text(data_path(CLIPS[0]).read_text()[:3000])
+    lib = tmp_path / "with_bad.mczdb"
+    res = runner.invoke(cli, ["compress-db", *inputs, str(bad), "-o", str(lib)])
+    assert res.exit_code == 1 and lib.exists()
+    assert describe_library(lib)["clips"] == ["09_06", "09_01"]

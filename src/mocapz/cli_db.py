@@ -44,10 +44,19 @@ def _weights(pairs: tuple[str, ...], weights_file: str | None) -> Any:
 @click.option("--hierarchy", default=None, help="JSON file giving the body-part hierarchy")
 @click.option("--weight", "weight_pairs", multiple=True, help="marker weight LABEL=VALUE (repeatable)")
 @click.option("--weights", "weights_file", default=None, help="JSON file of per-marker weights")
+@click.option("-j", "--jobs", type=click.IntRange(min=1), default=1, show_default=True,
+              help="worker processes reading the clips")
+@click.option("--scheduler", default=None, metavar="ADDRESS",
+              help="read the clips on a Dask cluster (tcp://host:8786, or 'local')")
 def compress_db(inputs: tuple[Path, ...], output: Path, force: bool, as_json: bool, weight_pairs: tuple[str, ...],
-                weights_file: str | None, **codec_options: Any) -> None:
-    """Compress INPUT files (.bvh, .amc, .c3d, .trc) into one .mczdb library with shared pattern databases."""
-    from .io import load
+                weights_file: str | None, jobs: int, scheduler: str | None, **codec_options: Any) -> None:
+    """Compress INPUT files (.bvh, .amc, .c3d, .trc) or folders of them into one .mczdb library with shared
+    pattern databases. Clips are read in parallel (--jobs / --scheduler); the databases are built over all
+    of them. A clip that cannot be read is reported and left out (exit code 1)."""
+    import sys
+
+    from .batch import discover, load_many
+    from .errors import MocapzError
     from .io.common import atomic_write
     from .library import compress_library
 
@@ -57,7 +66,20 @@ def compress_db(inputs: tuple[Path, ...], output: Path, force: bool, as_json: bo
     w = _weights(weight_pairs, weights_file)
     if w is not None:
         options["weights"] = w
-    motions = [load(p) for p in inputs]
+    paths: list[Path] = []
+    for p in inputs:
+        paths += discover(p) if p.is_dir() else [p]
+    if output.exists() and not force:
+        raise MocapzError(f"{output}: output exists (use -f to overwrite)")
+    motions, failed = [], 0
+    for path, motion, reason in load_many(paths, jobs=jobs, scheduler=scheduler):
+        if motion is None:
+            failed += 1
+            click.echo(f"mocapz: error: {path}: {reason}", err=True)
+        else:
+            motions.append(motion)
+    if not motions:
+        raise MocapzError("no clip could be read")
     t0 = time.perf_counter()
     data = compress_library(motions, **options)
     elapsed = time.perf_counter() - t0
@@ -70,4 +92,6 @@ def compress_db(inputs: tuple[Path, ...], output: Path, force: bool, as_json: bo
         click.echo(json.dumps(info))
     else:
         click.echo(f"{len(motions)} clips -> {output}: {len(data)} bytes, ratio {raw / len(data):.4g}, "
-                   f"{elapsed:.2f} s")
+                   f"{elapsed:.2f} s" + (f"; {failed} clip(s) failed" if failed else ""))
+    if failed:
+        sys.exit(1)
