@@ -13,6 +13,7 @@ then interpolates them smoothly.
 from __future__ import annotations
 
 import functools
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -82,62 +83,68 @@ def _predict_so3(recon: np.ndarray, level: Level) -> np.ndarray:
     return pred
 
 
+def _pyramid(n: int, lod: int, recon: np.ndarray, predict: Callable[[np.ndarray, Level], np.ndarray],
+             refine: Callable[[np.ndarray, np.ndarray], np.ndarray]) -> None:
+    """The coarse-to-fine pass shared by every coder and decoder: predict each level's odd samples from
+    the reconstruction so far, then ``refine(positions, prediction)`` (code or apply the details), except on
+    the ``lod`` finest levels, which keep the prediction."""
+    levels = plan(n)
+    for li, level in enumerate(levels):
+        pred = predict(recon, level)
+        dropped = len(levels) - 1 - li < lod
+        recon[level.positions] = pred if dropped else refine(level.positions, pred)
+
+
+class _Reader:
+    """Hands out the stored detail rows level by level."""
+
+    def __init__(self, q: np.ndarray) -> None:
+        self.q, self.pos = q, 1
+
+    def take(self, m: int) -> np.ndarray:
+        out = self.q[self.pos : self.pos + m]
+        self.pos += m
+        return out
+
+
 def encode_rn(x: np.ndarray, step: float, lod: int) -> tuple[np.ndarray, np.ndarray]:
     """Quantised multiscale coefficients of ``x`` ``(n, d)`` and its reconstruction.
 
     Returns integer rows ``(n - dropped, d)`` (sample 0 first, then the kept details, coarse to fine)
     and the reconstruction ``(n, d)`` the decoder will produce.
     """
-    n = x.shape[0]
     recon = np.zeros_like(x, dtype=np.float64)
     rows = [np.round(x[:1] / step)]
     recon[0] = rows[0][0] * step
-    levels = plan(n)
-    for li, level in enumerate(levels):
-        pred = _predict_rn(recon, level)
-        if len(levels) - 1 - li < lod:
-            recon[level.positions] = pred
-            continue
-        q = np.round((x[level.positions] - pred) / step)
-        rows.append(q)
-        recon[level.positions] = pred + q * step
+
+    def refine(pos: np.ndarray, pred: np.ndarray) -> np.ndarray:
+        rows.append(np.round((x[pos] - pred) / step))
+        return pred + rows[-1] * step
+
+    _pyramid(x.shape[0], lod, recon, _predict_rn, refine)
     return np.concatenate(rows).astype(np.int64), recon
 
 
 def decode_rn(q: np.ndarray, n: int, step: float, lod: int) -> np.ndarray:
     """Inverse of :func:`encode_rn`."""
-    d = q.shape[1]
-    recon = np.zeros((n, d))
+    recon = np.zeros((n, q.shape[1]))
     recon[0] = q[0] * step
-    pos = 1
-    levels = plan(n)
-    for li, level in enumerate(levels):
-        pred = _predict_rn(recon, level)
-        if len(levels) - 1 - li < lod:
-            recon[level.positions] = pred
-            continue
-        m = level.positions.size
-        recon[level.positions] = pred + q[pos : pos + m] * step
-        pos += m
+    reader = _Reader(q)
+    _pyramid(n, lod, recon, _predict_rn, lambda pos, pred: pred + reader.take(pos.size) * step)
     return recon
 
 
 def encode_so3(r: np.ndarray, step: float, lod: int) -> tuple[np.ndarray, np.ndarray]:
     """Multiscale coding of rotations ``(n, 3, 3)``: integer rows ``(rows, 3)`` and the reconstruction."""
-    n = r.shape[0]
     recon = np.empty_like(r)
-    first = np.round(so3.log(r[:1]) / step)
-    recon[0] = so3.exp(first * step)[0]
-    rows = [first]
-    levels = plan(n)
-    for li, level in enumerate(levels):
-        pred = _predict_so3(recon, level)
-        if len(levels) - 1 - li < lod:
-            recon[level.positions] = pred
-            continue
-        q = np.round(so3.log(np.swapaxes(pred, -1, -2) @ r[level.positions]) / step)
-        rows.append(q)
-        recon[level.positions] = pred @ so3.exp(q * step)
+    rows = [np.round(so3.log(r[:1]) / step)]
+    recon[0] = so3.exp(rows[0] * step)[0]
+
+    def refine(pos: np.ndarray, pred: np.ndarray) -> np.ndarray:
+        rows.append(np.round(so3.log(np.swapaxes(pred, -1, -2) @ r[pos]) / step))
+        return pred @ so3.exp(rows[-1] * step)
+
+    _pyramid(r.shape[0], lod, recon, _predict_so3, refine)
     return np.concatenate(rows).astype(np.int64), recon
 
 
@@ -145,16 +152,8 @@ def decode_so3(q: np.ndarray, n: int, step: float, lod: int) -> np.ndarray:
     """Inverse of :func:`encode_so3`."""
     recon = np.empty((n, 3, 3))
     recon[0] = so3.exp(q[:1] * step)[0]
-    pos = 1
-    levels = plan(n)
-    for li, level in enumerate(levels):
-        pred = _predict_so3(recon, level)
-        if len(levels) - 1 - li < lod:
-            recon[level.positions] = pred
-            continue
-        m = level.positions.size
-        recon[level.positions] = pred @ so3.exp(q[pos : pos + m] * step)
-        pos += m
+    reader = _Reader(q)
+    _pyramid(n, lod, recon, _predict_so3, lambda pos, pred: pred @ so3.exp(reader.take(pos.size) * step))
     return recon
 
 
