@@ -14,7 +14,7 @@ from typing import Any
 import click
 
 from . import __version__
-from .errors import MocapzError
+from .errors import FormatError, MocapzError
 
 # Codec options exposed on the command line: name -> (type, help). Each is passed to the codec only
 # when given, so every codec validates its own options.
@@ -112,7 +112,12 @@ def compress(input: Path, output: Path, codec: str, asf: Path | None, force: boo
         raise MocapzError("--jobs and --scheduler apply when INPUT is a folder")
     motion = load(input, asf) if asf else load(input)
     t0 = time.perf_counter()
-    data = do_compress(motion, codec=codec, **options)
+    try:
+        data = do_compress(motion, codec=codec, **options)
+    except MocapzError as exc:
+        if str(input) in str(exc):
+            raise
+        raise type(exc)(f"{input}: {exc}") if not isinstance(exc, FormatError) else exc from None
     elapsed = time.perf_counter() - t0
     atomic_write(output, lambda tmp: tmp.write_bytes(data), force=force)
     figs = size_figures(motion, len(data))
