@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -75,6 +75,7 @@ class Prepared:
     eff_global: np.ndarray  # (F, e, 3)
     eff_local: np.ndarray  # (F, e, 3) in the root frame
     full_model: PGAModel
+    ref_cache: dict[int, np.ndarray] = field(default_factory=dict)  # original positions, for rate control
 
 
 def prepare(motion: Motion, effectors: list[int] | None = None, outliers: list[int] | None = None) -> Prepared:

@@ -149,12 +149,9 @@ def evaluate_settings(p: Prepared, s: PGASettings, rows: np.ndarray | None = Non
     return sections, size, d, e
 
 
-_REF: dict[tuple[int, int], np.ndarray] = {}
-
-
 def _reference(p: Prepared, rows: np.ndarray | None) -> np.ndarray:
     """Original positions of all frames, or of the given kept frames (cached on the Prepared object)."""
-    cache = p.__dict__.setdefault("_ref_cache", {})
+    cache = p.ref_cache
     key = -1 if rows is None else int(rows.size)
     if key not in cache:
         ch = p.motion.channels if rows is None else p.motion.channels[p.kept[rows]]
