@@ -87,6 +87,7 @@ class Decoded:
     root_rot: np.ndarray  # (F, 3, 3)
     targets: np.ndarray  # (F, e, 3) effector targets in the root frame
     coords: np.ndarray | None  # (F, k)
+    other: np.ndarray  # (F, p) decoded position channels of non-root joints
 
 
 def decode_streams(skeleton: Skeleton, s: PGASettings, sections: dict[str, bytes], n: int) -> Decoded:
@@ -117,7 +118,7 @@ def decode_streams(skeleton: Skeleton, s: PGASettings, sections: dict[str, bytes
         targets = problem.forward(coords)[0] + eff
     else:
         targets = targets_in_root_frame(eff, root_pos, root_rot)
-    return Decoded(model, effectors, problem, root_pos, root_rot, targets, coords)
+    return Decoded(model, effectors, problem, root_pos, root_rot, targets, coords, other)
 
 
 def make_problem(skeleton: Skeleton, model: PGAModel, effectors: np.ndarray, other: np.ndarray) -> IKProblem:
@@ -133,7 +134,6 @@ def make_problem(skeleton: Skeleton, model: PGAModel, effectors: np.ndarray, oth
         trans = skeleton.offsets
     problem = IKProblem(skeleton, model, effectors, np.broadcast_to(np.eye(3), (skeleton.n_joints, 3, 3)),
                         trans, skeleton_scale(skeleton))
-    problem.other = other  # type: ignore[attr-defined]
     return problem
 
 
@@ -147,9 +147,8 @@ def decode_rows(skeleton: Skeleton, s: PGASettings, sections: dict[str, bytes], 
         return rebuild(skeleton, d, s, d.targets)[rows]
     trans = d.problem.trans[rows] if d.problem.trans.ndim == 3 else d.problem.trans
     problem = IKProblem(skeleton, d.model, d.effectors, d.problem.rest_rot, trans, d.problem.scale)
-    problem.other = d.problem.other[rows]  # type: ignore[attr-defined]
     sub = Decoded(d.model, d.effectors, problem, d.root_pos[rows], d.root_rot[rows], d.targets[rows],
-                  None if d.coords is None else d.coords[rows])
+                  None if d.coords is None else d.coords[rows], d.other[rows])
     return rebuild(skeleton, sub, s, sub.targets)
 
 
@@ -188,7 +187,7 @@ def rebuild(skeleton: Skeleton, d: Decoded, s: PGASettings, targets: np.ndarray)
     labels = skeleton.channel_labels()
     for c in root_cols:
         out[:, c] = d.root_pos[:, "XYZ".index(labels[c].split(".")[-1][0])]
-    out[:, other_cols] = d.problem.other  # type: ignore[attr-defined]
+    out[:, other_cols] = d.other
     return np.nan_to_num(out)
 
 
