@@ -102,7 +102,7 @@ def test_adaptive_kmeans_meets_max_error_bound() -> None:
     err = sample_errors(x, o, cl.centers[cl.labels], per_member=3)
     assert err.max() <= tol + 1e-9
     assert len(cl.centers) >= 6 + 1  # grew from 2: the blobs and (some of) the outliers
-    np.testing.assert_allclose(err, cl.errors)
+    np.testing.assert_allclose(err, cl.errors, atol=1e-5)
     ave = adaptive_kmeans(x, o, tol, k0=2, metric=AVE)
     assert (ave.errors**2).mean() <= tol**2 + 1e-9
     assert len(ave.centers) <= len(cl.centers)
