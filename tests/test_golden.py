@@ -1,0 +1,35 @@
+"""Golden files: ``.mcz`` files made by earlier encoders decode for ever to the same values, and today's
+encoders still write the same bytes (moves and refactors must not change a codec's output; a deliberate
+format change bumps the codec version and adds new golden files beside the old ones)."""
+
+from __future__ import annotations
+
+import hashlib
+import json
+
+import pytest
+from golden.make import CASES, HERE, source, values_hash
+
+import mocapz
+from mocapz.codecs import codec_names
+
+ENTRIES = json.loads((HERE / "golden.json").read_text())
+
+
+def test_every_case_has_a_golden_file() -> None:
+    assert [e["file"] for e in ENTRIES] == [f"{c[0]}.mcz" for c in CASES]
+    assert {e["codec"] for e in ENTRIES} == set(codec_names())  # every registered codec is pinned
+
+
+@pytest.mark.parametrize("entry", ENTRIES, ids=[e["file"] for e in ENTRIES])
+def test_golden_decodes_to_the_same_values(entry: dict) -> None:
+    data = (HERE / entry["file"]).read_bytes()
+    assert hashlib.sha256(data).hexdigest() == entry["sha256"], "golden file changed on disk"
+    assert values_hash(mocapz.decompress(data)) == entry["values_sha256"]
+
+
+@pytest.mark.parametrize("entry", ENTRIES, ids=[e["file"] for e in ENTRIES])
+def test_encoder_writes_the_golden_bytes(entry: dict) -> None:
+    a, b = entry["frames"]
+    data = mocapz.compress(source(entry["source"], a, b), codec=entry["codec"], **entry["options"])
+    assert hashlib.sha256(data).hexdigest() == entry["sha256"], f"{entry['file']}: the encoder's bytes moved"
