@@ -33,7 +33,7 @@ from mocapz.api import read_container
 from mocapz.codecs.patterns.quantise import decode_patterns
 from mocapz.codecs.patterns.segments import decode_segments
 from mocapz.library import Library, compress_library, read_clip
-from mocapz.motion import MarkerMotion
+from mocapz.model.motion import MarkerMotion
 
 ROOT = Path(__file__).resolve().parents[1]
 DATA = ROOT.parent / "shared" / "data"

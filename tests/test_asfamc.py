@@ -15,8 +15,8 @@ from mocapz.io import asfamc
 from mocapz.io.asfamc import find_asf, generate_asf, read_asfamc, write_asfamc
 from mocapz.io.bvh import read_bvh
 from mocapz.io.common import CMU_UNIT_CM
-from mocapz.kinematics import forward_kinematics
-from mocapz.motion import Motion
+from mocapz.model.kinematics import forward_kinematics
+from mocapz.model.motion import Motion
 
 # (amc, frames, joints, channels) as listed in the data MANIFEST
 PAIRS = [

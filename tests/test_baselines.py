@@ -17,8 +17,8 @@ from mocapz import FormatError, MarkerMotion, Motion, OptionError
 from mocapz.codecs import codec_names, get_codec
 from mocapz.codecs.baselines import quant, segpca, subsample
 from mocapz.codecs.baselines.common import values_of
-from mocapz.container import Container
-from mocapz.layout import decode_layout
+from mocapz.format.container import Container
+from mocapz.format.layout import decode_layout
 
 BASELINES = ("subsample", "pca", "segpca", "quant")
 BVH = "cmu/bvh/09_06.bvh"  # 142 frames, 96 channels, T-pose in frame 1

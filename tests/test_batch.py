@@ -13,9 +13,9 @@ import pytest
 from conftest import data_path
 
 import mocapz
-from mocapz.batch import Pool, WorkerCrashed, compress_folder, discover, load_many, plan
-from mocapz.cli_batch import run_batch_compress
+from mocapz.cli.batch import run_batch_compress
 from mocapz.errors import MocapzError, OptionError
+from mocapz.parallel.batch import Pool, WorkerCrashed, compress_folder, discover, load_many, plan
 
 SHORT_CLIPS = {  # a few short shared clips, copied into tmp_path (never into the repo)
     "cmu/bvh/09_06.bvh": "09_06.bvh",

@@ -18,8 +18,8 @@ from mocapz.bench import run_bench, write_report
 from mocapz.bench.corpus import default_paths, discover, quick_selection
 from mocapz.bench.curves import corpus_ratio, pareto, ratio_at
 from mocapz.bench.sweeps import DEFAULT_CODECS, parse_codecs
-from mocapz.cli import cli
-from mocapz.cli_bench import bench
+from mocapz.cli.bench import bench
+from mocapz.cli.main import cli
 from mocapz.codecs import _REGISTRY, CodecInfo, get_codec
 
 SHORT = "cmu/bvh/09_06.bvh"  # 142 frames

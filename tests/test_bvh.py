@@ -12,9 +12,9 @@ from scipy.spatial.transform import Rotation
 from mocapz.errors import FormatError, MocapzError
 from mocapz.io.bvh import read_bvh, write_bvh
 from mocapz.io.common import CMU_UNIT_CM
-from mocapz.kinematics import forward_kinematics
-from mocapz.motion import Motion
-from mocapz.skeleton import Skeleton
+from mocapz.model.kinematics import forward_kinematics
+from mocapz.model.motion import Motion
+from mocapz.model.skeleton import Skeleton
 
 # (file, frames, joints, channels, end sites, frames per second) as listed in the data MANIFEST
 BVH_FILES = [
@@ -77,7 +77,7 @@ def _write(tmp_path: Path, text: str, name: str = "bad.bvh") -> Path:
 
 
 def _reference_fk(sk: Skeleton, row: np.ndarray) -> np.ndarray:
-    """Per-frame FK written independently of mocapz.kinematics: ``(joints + end sites, 3)`` positions.
+    """Per-frame FK written independently of mocapz.model.kinematics: ``(joints + end sites, 3)`` positions.
 
     Each joint's local rotation is ``Rotation.from_euler(order.upper(), angles, degrees=True)`` (intrinsic
     rotations in the listed channel order, i.e. R = R_a1 @ R_a2 @ R_a3); position channels replace the

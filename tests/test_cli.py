@@ -1,7 +1,7 @@
 """The ``mocapz`` command line, run as a real subprocess: bad inputs, overwriting, usage errors, --json output
 and a compress / decompress / eval round trip.
 
-``cli.py`` has no ``if __name__ == "__main__"`` block, so ``python -m mocapz.cli`` would do nothing: the tests
+``cli.py`` has no ``if __name__ == "__main__"`` block, so ``python -m mocapz.cli.main`` would do nothing: the tests
 run the installed console script that sits beside the interpreter.
 """
 

@@ -18,10 +18,10 @@ from conftest import data_path
 
 import mocapz
 from mocapz import FormatError
-from mocapz.container import FORMAT_VERSION, MAGIC, Container
+from mocapz.format.container import FORMAT_VERSION, MAGIC, Container
+from mocapz.format.layout import _DICT, decode_layout, encode_layout, layout_dict
 from mocapz.io.bvh import read_bvh
-from mocapz.layout import _DICT, decode_layout, encode_layout, layout_dict
-from mocapz.motion import Motion
+from mocapz.model.motion import Motion
 
 
 @pytest.fixture(scope="module")
@@ -37,7 +37,7 @@ def small(clip: Motion) -> bytes:
 
 
 def _uvarint(buf: bytes, pos: int) -> tuple[int, int]:
-    """LEB128 unsigned varint at ``pos``: (value, next position). Written apart from mocapz.entropy."""
+    """LEB128 unsigned varint at ``pos``: (value, next position). Written apart from mocapz.format.entropy."""
     value = shift = 0
     while True:
         b = buf[pos]

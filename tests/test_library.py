@@ -7,14 +7,14 @@ import pytest
 from click.testing import CliRunner
 from conftest import data_path
 
-from mocapz.cli import cli
-from mocapz.cli_db import compress_db
+from mocapz.cli.db import compress_db
+from mocapz.cli.main import cli
 from mocapz.codecs.patterns.options import settings_from
 from mocapz.codecs.patterns.prepare import prepare
 from mocapz.errors import FormatError, MocapzError, OptionError
 from mocapz.io import load
 from mocapz.library import Library, _build, compress_library, describe_library, read_clip
-from mocapz.metrics import evaluate
+from mocapz.metrics.figures import evaluate
 
 CLIPS = ["cmu/bvh/09_06.bvh", "cmu/bvh/09_01.bvh", "cmu/bvh/02_03.bvh"]
 

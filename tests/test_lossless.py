@@ -21,8 +21,8 @@ from mocapz.codecs.lossless.integers import (
     from_integers,
     to_integers,
 )
-from mocapz.container import Container
-from mocapz.entropy import (
+from mocapz.format.container import Container
+from mocapz.format.entropy import (
     CODER_RANGE,
     CODER_ZSTD,
     HAVE_CONSTRICTION,
@@ -37,7 +37,7 @@ from mocapz.entropy import (
     zigzag,
 )
 from mocapz.io.bvh import read_bvh
-from mocapz.skeleton import Skeleton
+from mocapz.model.skeleton import Skeleton
 
 MOTION_SUFFIXES = (".bvh", ".amc", ".c3d", ".trc")
 SAMPLES_DIR = "other/markers/btkdata/c3d_samples"  # C3D storage variants and bad input (MANIFEST)

@@ -17,7 +17,7 @@ from conftest import data_path
 from mocapz.errors import FormatError, MocapzError
 from mocapz.io.c3d import read_c3d, write_c3d
 from mocapz.io.trc import read_trc, write_trc
-from mocapz.motion import MarkerMotion
+from mocapz.model.motion import MarkerMotion
 
 CMU_C3D = "cmu/c3d/01_01.c3d"
 LAB_C3D = "other/markers/pyomeca/markers_analogs.c3d"

@@ -11,7 +11,7 @@ from conftest import data_path
 from mocapz import compress, decompress
 from mocapz.errors import MocapzError
 from mocapz.io.bvh import read_bvh
-from mocapz.metrics import (
+from mocapz.metrics.figures import (
     arms,
     bone_len_err,
     bone_pairs,
@@ -21,8 +21,8 @@ from mocapz.metrics import (
     positions_pair,
     size_figures,
 )
-from mocapz.motion import MarkerMotion, Motion
-from mocapz.skeleton import Skeleton
+from mocapz.model.motion import MarkerMotion, Motion
+from mocapz.model.skeleton import Skeleton
 
 NAN = float("nan")
 

@@ -23,10 +23,10 @@ from mocapz.codecs.patterns.quantise import (
 from mocapz.codecs.patterns.segment import partition
 from mocapz.codecs.patterns.segments import decode_segments, encode_segments
 from mocapz.errors import FormatError, MocapzError, OptionError
+from mocapz.format.layout import layout_dict
 from mocapz.io import load
-from mocapz.layout import layout_dict
-from mocapz.metrics import evaluate
-from mocapz.motion import MarkerMotion
+from mocapz.metrics.figures import evaluate
+from mocapz.model.motion import MarkerMotion
 
 C3D = "cmu/c3d/01_01.c3d"
 
@@ -277,7 +277,7 @@ def test_zero_markers_and_bad_options(c3d_short: MarkerMotion) -> None:
 
 def test_corrupted_stream_is_a_format_error(c3d_short: MarkerMotion) -> None:
     from mocapz.codecs.patterns import decode
-    from mocapz.container import Container
+    from mocapz.format.container import Container
 
     box = Container.from_bytes(compress(c3d_short, codec="patterns", bits=3, tolerance=0.05))
     sections = dict(box.sections)

@@ -16,7 +16,7 @@ from mocapz.codecs.pga.model import fit_pga
 from mocapz.codecs.pga.params import PGASettings
 from mocapz.codecs.pga.pipeline import inner_joints
 from mocapz.errors import OptionError, TargetError
-from mocapz.kinematics import forward_kinematics, local_rotations, local_translations
+from mocapz.model.kinematics import forward_kinematics, local_rotations, local_translations
 
 
 @pytest.fixture(scope="module")

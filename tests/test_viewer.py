@@ -1,4 +1,4 @@
-"""``mocapz view`` and ``mocapz.plots``: the self-contained HTML player (checked in real headless Chromium),
+"""``mocapz view`` and ``mocapz.metrics.plots``: the self-contained HTML player (checked in real headless Chromium),
 GIF / MP4 animations and the error plots.
 
 The browser test drives Debian's ``chromium`` through the DevTools protocol over a pipe (no port, no network):
@@ -31,11 +31,11 @@ from conftest import data_path
 from PIL import Image
 
 import mocapz
-from mocapz.cli_view import view as view_command
+from mocapz.cli.view import view as view_command
 from mocapz.errors import FormatError, MocapzError, OptionError
 from mocapz.io import load
-from mocapz.motion import MarkerMotion
-from mocapz.plots import plot_errors
+from mocapz.metrics.plots import plot_errors
+from mocapz.model.motion import MarkerMotion
 from mocapz.viewer import build_page, prepare_view, render_animation, render_frame, write_page
 from mocapz.viewer.page import page_data
 
@@ -223,7 +223,7 @@ def test_plot_errors(run_motion: mocapz.Motion, pga_mcz: Path, tmp_path: Path) -
 
 # --------------------------------------------------------------------------------------------------- CLI
 def invoke(*args: object) -> Any:
-    """Run the view command in-process; mocapz errors propagate as exceptions (as ``mocapz.cli.main`` sees them)."""
+    """Run the view command in-process; mocapz errors propagate as exceptions (as the CLI entry point sees them)."""
     return view_command.main([str(a) for a in args], standalone_mode=False)
 
 
@@ -253,7 +253,7 @@ def test_view_command(pga_mcz: Path, tmp_path: Path) -> None:
 
 
 def test_view_is_a_mocapz_command(pga_mcz: Path, tmp_path: Path) -> None:
-    """``mocapz view`` through the installed console script (wired in mocapz.cli)."""
+    """``mocapz view`` through the installed console script (wired in mocapz.cli.main)."""
     res = subprocess.run([MOCAPZ, "view", str(data_path(RUN)), str(pga_mcz), "-o", str(tmp_path / "v.html")],
                          capture_output=True, text=True, timeout=120)
     assert res.returncode == 0, res.stderr

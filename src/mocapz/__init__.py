@@ -12,12 +12,12 @@ from __future__ import annotations
 
 __version__ = "0.1.0"
 
-from .api import compress, decompress  # noqa: E402
-from .errors import FormatError, MocapzError, OptionError, TargetError  # noqa: E402
-from .io import load, save  # noqa: E402
-from .metrics import evaluate  # noqa: E402
-from .motion import MarkerMotion, Motion  # noqa: E402
-from .skeleton import Skeleton  # noqa: E402
+from mocapz.api import compress, decompress  # noqa: E402
+from mocapz.errors import FormatError, MocapzError, OptionError, TargetError  # noqa: E402
+from mocapz.io import load, save  # noqa: E402
+from mocapz.metrics.figures import evaluate  # noqa: E402
+from mocapz.model.motion import MarkerMotion, Motion  # noqa: E402
+from mocapz.model.skeleton import Skeleton  # noqa: E402
 
 __all__ = [
     "FormatError", "MarkerMotion", "MocapzError", "Motion", "OptionError", "Skeleton", "TargetError",

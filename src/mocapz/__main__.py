@@ -1,5 +1,5 @@
 """``python -m mocapz``: the command line."""
 
-from .cli import main
+from mocapz.cli.main import main
 
 main()

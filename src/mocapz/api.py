@@ -5,11 +5,11 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from .codecs import get_codec
-from .container import Container
-from .errors import FormatError, OptionError
-from .layout import decode_layout, encode_layout
-from .motion import AnyMotion, Motion
+from mocapz.codecs import get_codec
+from mocapz.errors import FormatError, OptionError
+from mocapz.format.container import Container
+from mocapz.format.layout import decode_layout, encode_layout
+from mocapz.model.motion import AnyMotion, Motion
 
 
 def compress(motion: AnyMotion, codec: str = "lossless", **options: Any) -> bytes:

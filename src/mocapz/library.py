@@ -35,22 +35,22 @@ from typing import Any
 import numpy as np
 import zstandard
 
-from .codecs.patterns import VERSION
-from .codecs.patterns.bodies import code_clips
-from .codecs.patterns.decode import decode_clip
-from .codecs.patterns.encode import target_from
-from .codecs.patterns.hierarchy import Hierarchy
-from .codecs.patterns.options import settings_from
-from .codecs.patterns.pipeline import Settings
-from .codecs.patterns.prepare import Prepared, marker_addh, prepare
-from .codecs.patterns.quantise import decode_patterns
-from .codecs.patterns.rate import search
-from .codecs.patterns.skeletal import skeleton_addh
-from .container import read_sections, seal, write_sections
-from .entropy import pack_uint64, read_uvarint, safe_zstd_decompress, unpack_uint64, write_uvarint
-from .errors import FormatError, MocapzError, OptionError
-from .layout import decode_layout, encode_layout
-from .motion import AnyMotion, MarkerMotion
+from mocapz.codecs.patterns import VERSION
+from mocapz.codecs.patterns.bodies import code_clips
+from mocapz.codecs.patterns.decode import decode_clip
+from mocapz.codecs.patterns.encode import target_from
+from mocapz.codecs.patterns.hierarchy import Hierarchy
+from mocapz.codecs.patterns.options import settings_from
+from mocapz.codecs.patterns.pipeline import Settings
+from mocapz.codecs.patterns.prepare import Prepared, marker_addh, prepare
+from mocapz.codecs.patterns.quantise import decode_patterns
+from mocapz.codecs.patterns.rate import search
+from mocapz.codecs.patterns.skeletal import skeleton_addh
+from mocapz.errors import FormatError, MocapzError, OptionError
+from mocapz.format.container import read_sections, seal, write_sections
+from mocapz.format.entropy import pack_uint64, read_uvarint, safe_zstd_decompress, unpack_uint64, write_uvarint
+from mocapz.format.layout import decode_layout, encode_layout
+from mocapz.model.motion import AnyMotion, MarkerMotion
 
 MAGIC = b"MCZL\x1a"
 FORMAT_VERSION = 1

@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 
 import mocapz
-from mocapz.motion import MarkerMotion, Motion
+from mocapz.model.motion import MarkerMotion, Motion
 
 HERE = Path(__file__).resolve().parent
 DATA = Path(os.environ.get("MOCAPZ_DATA", HERE.parents[1].parent / "shared" / "data"))

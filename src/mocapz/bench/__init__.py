@@ -15,10 +15,10 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from .curves import pareto, ratio_at
-from .measure import measure_codec, measure_generic
-from .runner import run_bench, write_results
-from .sweeps import DEFAULT_CODECS, GENERIC, settings_for
+from mocapz.bench.curves import pareto, ratio_at
+from mocapz.bench.measure import measure_codec, measure_generic
+from mocapz.bench.runner import run_bench, write_results
+from mocapz.bench.sweeps import DEFAULT_CODECS, GENERIC, settings_for
 
 run = run_bench
 
@@ -29,7 +29,7 @@ def write_report(doc: dict[str, Any], out_dir: str | Path, plots: bool = True,
 
     Returns the paths written, by kind (``results``, ``report``, and one per plot).
     """
-    from .report import render
+    from mocapz.bench.report import render
 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
@@ -37,7 +37,7 @@ def write_report(doc: dict[str, Any], out_dir: str | Path, plots: bool = True,
     write_results(doc, written["results"])
     images: dict[str, str] = {}
     if plots:
-        from .plots import write_plots
+        from mocapz.bench.plots import write_plots
 
         images = write_plots(doc, out)
         written.update({t: out / f for t, f in images.items()})

@@ -6,8 +6,8 @@ import os
 from dataclasses import dataclass
 from pathlib import Path
 
-from ..errors import MocapzError
-from ..io import MOTION_EXTENSIONS
+from mocapz.errors import MocapzError
+from mocapz.io import MOTION_EXTENSIONS
 
 #: Marker formats (everything else in :data:`MOTION_EXTENSIONS` is skeletal).
 MARKER_EXTENSIONS = (".c3d", ".trc")

@@ -15,10 +15,10 @@ from typing import Any, TypeVar
 
 import zstandard
 
-from ..api import compress, decompress
-from ..errors import MocapzError
-from ..metrics import evaluate, size_figures
-from ..motion import AnyMotion, Motion
+from mocapz.api import compress, decompress
+from mocapz.errors import MocapzError
+from mocapz.metrics.figures import evaluate, size_figures
+from mocapz.model.motion import AnyMotion, Motion
 
 T = TypeVar("T")
 
@@ -90,7 +90,7 @@ def measure_codec(motion: AnyMotion, codec: str, setting: dict[str, Any],
     """Compress with ``codec`` at ``setting``, decompress, score.
 
     Returns the size figures (``compressed_bytes`` is the whole ``.mcz`` file), every error figure of
-    :func:`mocapz.metrics.evaluate` (with ``*_cm``), and ``encode_ms_per_frame`` / ``decode_ms_per_frame``:
+    :func:`mocapz.metrics.figures.evaluate` (with ``*_cm``), and ``encode_ms_per_frame`` / ``decode_ms_per_frame``:
     wall time of :func:`mocapz.compress` / :func:`mocapz.decompress` alone (no parsing, no writing),
     fastest of up to 3 runs for calls under 50 ms; ``deterministic``: whether repeated encodes gave the
     same bytes (``None`` when the encode ran once). Errors propagate to the caller.

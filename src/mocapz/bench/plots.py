@@ -11,10 +11,10 @@ from typing import Any
 
 import numpy as np
 
-from .curves import corpus_ratio, metric_points, ratio_at
-from .published import PUBLISHED
-from .report import by_clip_codec
-from .sweeps import GENERIC
+from mocapz.bench.curves import corpus_ratio, metric_points, ratio_at
+from mocapz.bench.published import PUBLISHED
+from mocapz.bench.report import by_clip_codec
+from mocapz.bench.sweeps import GENERIC
 
 LOSSLESS = ("lossless", *GENERIC)
 MIN_ERROR = 1e-3  # errors below this (exact settings) are left off the log axes

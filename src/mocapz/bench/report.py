@@ -6,9 +6,9 @@ import statistics
 from collections.abc import Sequence
 from typing import Any
 
-from .curves import corpus_ratio, metric_points, ratio_at
-from .published import PUBLISHED, Published, same_clip
-from .sweeps import GENERIC
+from mocapz.bench.curves import corpus_ratio, metric_points, ratio_at
+from mocapz.bench.published import PUBLISHED, Published, same_clip
+from mocapz.bench.sweeps import GENERIC
 
 #: Error levels of the fixed-error tables: (metric, level, column title).
 LEVELS: tuple[tuple[str, float, str], ...] = (

@@ -14,13 +14,13 @@ from contextlib import contextmanager, nullcontext
 from pathlib import Path
 from typing import Any
 
-from .. import __version__
-from ..codecs import get_codec
-from ..io import load
-from ..motion import AnyMotion, Motion
-from .corpus import ClipFile, default_paths, discover, quick_selection
-from .measure import clip_info, measure_codec, measure_generic
-from .sweeps import GENERIC, label, parse_codecs, settings_for
+from mocapz import __version__
+from mocapz.bench.corpus import ClipFile, default_paths, discover, quick_selection
+from mocapz.bench.measure import clip_info, measure_codec, measure_generic
+from mocapz.bench.sweeps import GENERIC, label, parse_codecs, settings_for
+from mocapz.codecs import get_codec
+from mocapz.io import load
+from mocapz.model.motion import AnyMotion, Motion
 
 #: Per codec call limit in seconds (a hung codec becomes a recorded failure).
 DEFAULT_TIMEOUT = 900.0

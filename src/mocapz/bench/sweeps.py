@@ -9,9 +9,9 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import Any
 
-from ..codecs import codec_names
-from ..errors import OptionError
-from ..motion import AnyMotion, Motion
+from mocapz.codecs import codec_names
+from mocapz.errors import OptionError
+from mocapz.model.motion import AnyMotion, Motion
 
 #: General-purpose compressors, measured on the source file's bytes (lossless).
 GENERIC = ("gzip", "bzip2", "xz", "zstd")
@@ -46,7 +46,7 @@ def _quant(motion: AnyMotion, quick: bool) -> list[Setting]:
     cms = (0.1, 0.3, 1.0, 3.0, 10.0) if quick else (0.03, 0.1, 0.3, 1.0, 3.0, 10.0, 30.0)
     if _unit_cm(motion):
         return [{"max_error": f"{c:g}cm"} for c in cms]
-    from ..codecs.baselines.quant import default_error  # 1/1000 of the clip's extent stands for 1 mm
+    from mocapz.codecs.baselines.quant import default_error  # 1/1000 of the clip's extent stands for 1 mm
 
     unit = default_error(motion)
     return [{"max_error": float(f"{10 * c * unit:.6g}")} for c in cms]

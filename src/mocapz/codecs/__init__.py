@@ -10,8 +10,8 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
-from ..errors import OptionError
-from ..motion import AnyMotion
+from mocapz.errors import OptionError
+from mocapz.model.motion import AnyMotion
 
 
 @dataclass(frozen=True)
@@ -53,7 +53,7 @@ def codec_names() -> list[str]:
 
 
 def _lossless() -> CodecInfo:
-    from .lossless import INFO
+    from mocapz.codecs.lossless import INFO
 
     return INFO
 
@@ -62,13 +62,13 @@ register("lossless", _lossless)
 
 
 def _pga() -> CodecInfo:
-    from .pga import INFO
+    from mocapz.codecs.pga import INFO
 
     return INFO
 
 
 def _patterns() -> CodecInfo:
-    from .patterns import INFO
+    from mocapz.codecs.patterns import INFO
 
     return INFO
 

@@ -8,8 +8,8 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-from ..errors import FormatError, MocapzError
-from ..motion import AnyMotion, MarkerMotion, Motion
+from mocapz.errors import FormatError, MocapzError
+from mocapz.model.motion import AnyMotion, MarkerMotion, Motion
 
 SKELETAL_EXTENSIONS = (".bvh", ".amc")
 MARKER_EXTENSIONS = (".c3d", ".trc")
@@ -28,21 +28,21 @@ def load(path: str | os.PathLike[str], asf: str | os.PathLike[str] | None = None
     if not p.exists():
         raise FormatError(p, "no such file")
     if ext == ".bvh":
-        from .bvh import read_bvh
+        from mocapz.io.bvh import read_bvh
 
         return read_bvh(p)
     if ext == ".amc":
-        from .asfamc import read_asfamc
+        from mocapz.io.asfamc import read_asfamc
 
         return read_asfamc(p, asf)
     if ext == ".asf":
         raise FormatError(p, "an .asf holds only a skeleton; give the .amc motion file")
     if ext == ".c3d":
-        from .c3d import read_c3d
+        from mocapz.io.c3d import read_c3d
 
         return read_c3d(p)
     if ext == ".trc":
-        from .trc import read_trc
+        from mocapz.io.trc import read_trc
 
         return read_trc(p)
     raise FormatError(p, f"unknown motion file extension {ext!r} (expected one of {', '.join(MOTION_EXTENSIONS)})")
@@ -60,23 +60,23 @@ def save(motion: AnyMotion, path: str | os.PathLike[str], force: bool = False) -
         raise MocapzError(f"{p}: unknown output extension {ext!r} (expected one of {', '.join(MOTION_EXTENSIONS)})")
     if isinstance(motion, Motion):
         if ext == ".bvh":
-            from .bvh import write_bvh
+            from mocapz.io.bvh import write_bvh
 
             write_bvh(motion, p, force=force)
             return [p]
         if ext == ".amc":
-            from .asfamc import write_asfamc
+            from mocapz.io.asfamc import write_asfamc
 
             return write_asfamc(motion, p, force=force)
         raise MocapzError(f"{p}: skeletal motion can be written as .bvh or .amc, not {ext}")
     if isinstance(motion, MarkerMotion):
         if ext == ".c3d":
-            from .c3d import write_c3d
+            from mocapz.io.c3d import write_c3d
 
             write_c3d(motion, p, force=force)
             return [p]
         if ext == ".trc":
-            from .trc import write_trc
+            from mocapz.io.trc import write_trc
 
             write_trc(motion, p, force=force)
             return [p]

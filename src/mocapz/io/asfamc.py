@@ -1,6 +1,6 @@
 """Acclaim ASF/AMC reader and writer.
 
-The ASF (skeleton) and AMC (motion) pair maps onto the generic :class:`~mocapz.skeleton.Skeleton`:
+The ASF (skeleton) and AMC (motion) pair maps onto the generic :class:`~mocapz.model.skeleton.Skeleton`:
 
 * one joint per ASF bone, placed at the bone's base (``root`` included, first); the joint order is a
   depth-first walk of ``:hierarchy``;
@@ -30,10 +30,10 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from ..errors import FormatError, MocapzError
-from ..motion import Motion
-from ..skeleton import Skeleton
-from .common import atomic_write, detect_decimals, guess_unit_cm, read_text
+from mocapz.errors import FormatError, MocapzError
+from mocapz.io.common import atomic_write, detect_decimals, guess_unit_cm, read_text
+from mocapz.model.motion import Motion
+from mocapz.model.skeleton import Skeleton
 
 DEFAULT_FRAME_RATE = 120.0  # CMU capture rate; the AMC format has no rate field
 
@@ -411,7 +411,7 @@ def build_skeleton(asf: _Asf, amc_bones: Iterable[str] | None = None) -> Skeleto
 
 def rest_height(sk: Skeleton) -> float:
     """Largest extent of the rest pose (all channels zero, offsets only), in file units."""
-    from ..kinematics import chain
+    from mocapz.model.kinematics import chain
 
     rot = np.broadcast_to(np.eye(3), (1, sk.n_joints, 3, 3)).copy()
     pos, _ = chain(sk, rot, sk.offsets[None].copy())

@@ -11,10 +11,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import FormatError
-from ..motion import Motion
-from ..skeleton import CHANNEL_NAMES, Skeleton
-from .common import (
+from mocapz.errors import FormatError
+from mocapz.io.common import (
     CMU_UNIT_CM,
     atomic_write,
     detect_decimals,
@@ -23,6 +21,8 @@ from .common import (
     read_text,
     snap_rate,
 )
+from mocapz.model.motion import Motion
+from mocapz.model.skeleton import CHANNEL_NAMES, Skeleton
 
 CMU_JOINTS = {"Hips", "LHipJoint", "LeftUpLeg", "LowerBack", "Spine1", "LeftHandIndex1", "RThumb"}
 
@@ -250,7 +250,7 @@ def _set_units(skeleton: Skeleton) -> None:
 
 def rest_height(skeleton: Skeleton) -> float:
     """Extent of the rest pose (all rotations zero) along its largest axis, in file units."""
-    from ..kinematics import chain
+    from mocapz.model.kinematics import chain
 
     n = skeleton.n_joints
     rot = np.broadcast_to(np.eye(3), (1, n, 3, 3)).copy()

@@ -23,9 +23,9 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import FormatError, MocapzError
-from ..motion import MarkerMotion
-from .common import atomic_write
+from mocapz.errors import FormatError, MocapzError
+from mocapz.io.common import atomic_write
+from mocapz.model.motion import MarkerMotion
 
 C3D_KEY = 0x50  # second byte of every C3D file
 BLOCK = 512

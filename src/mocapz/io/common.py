@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import FormatError, MocapzError
+from mocapz.errors import FormatError, MocapzError
 
 CMU_UNIT_CM = 2.54 / 0.45  # CMU ASF "length 0.45": 1 unit = 1/0.45 inch = 5.644 cm
 

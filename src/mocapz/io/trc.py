@@ -28,9 +28,9 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import FormatError
-from ..motion import MarkerMotion
-from .common import atomic_write, detect_decimals, read_text
+from mocapz.errors import FormatError
+from mocapz.io.common import atomic_write, detect_decimals, read_text
+from mocapz.model.motion import MarkerMotion
 
 HEADER_LINES = 5
 STANDARD_KEYS = ("DataRate", "CameraRate", "NumFrames", "NumMarkers", "Units", "OrigDataRate",

@@ -12,9 +12,9 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import FormatError, MocapzError, OptionError
-from ..metrics import bone_pairs, evaluate, point_errors, positions_pair, size_figures, up_axis
-from ..motion import AnyMotion, MarkerMotion, Motion
+from mocapz.errors import FormatError, MocapzError, OptionError
+from mocapz.metrics.figures import bone_pairs, evaluate, point_errors, positions_pair, size_figures, up_axis
+from mocapz.model.motion import AnyMotion, MarkerMotion, Motion
 
 #: Point-frames (frames x points) above which the page shows every n-th frame only (about 4 MB of HTML).
 PAGE_BUDGET = 250_000
@@ -105,12 +105,12 @@ def load_motion(path: Path, asf: Path | None = None) -> tuple[AnyMotion, dict[st
 
     The second value holds ``compressed_bytes`` and ``codec`` for a ``.mcz``, else nothing.
     """
-    from ..io import load
+    from mocapz.io import load
 
     path = Path(path)
     if path.suffix.lower() != ".mcz":
         return (load(path, asf) if asf else load(path)), {}
-    from ..api import decompress, read_container
+    from mocapz.api import decompress, read_container
 
     if not path.exists():
         raise FormatError(path, "no such file")

@@ -15,9 +15,9 @@ from typing import Any
 
 import numpy as np
 
-from ..io.common import atomic_write
-from .data import ViewData, color_scales, default_yaw
-from .template import PLACEHOLDER, TEMPLATE
+from mocapz.io.common import atomic_write
+from mocapz.viewer.data import ViewData, color_scales, default_yaw
+from mocapz.viewer.template import PLACEHOLDER, TEMPLATE
 
 MISSING_I16 = -32768
 MISSING_U8 = 255

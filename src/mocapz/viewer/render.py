@@ -16,9 +16,9 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import MocapzError, OptionError
-from ..io.common import atomic_write
-from .data import ViewData, default_yaw
+from mocapz.errors import MocapzError, OptionError
+from mocapz.io.common import atomic_write
+from mocapz.viewer.data import ViewData, default_yaw
 
 SS = 2  # supersampling factor
 BG = (21, 24, 29)

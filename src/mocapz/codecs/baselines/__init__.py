@@ -11,7 +11,7 @@ pca           one PCA for the clip, K components (pattern paper)          mean, 
 segpca        PCA per segment, spline-interpolated key-frame              per segment: mean, basis, key
               coefficients (Liu & McMillan 2006; PGA paper Table 3)       coefficients float32
 quant         per-track range reduction and uniform quantisation at a     integers, time differences range
-              step chosen from an error threshold, every frame kept       coded (mocapz.entropy)
+              step chosen from an error threshold, every frame kept       coded (mocapz.format.entropy)
               (how ACL / game-engine codecs work)
 ============  ==========================================================  ===============================
 

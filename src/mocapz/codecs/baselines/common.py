@@ -19,10 +19,10 @@ from typing import Any
 
 import numpy as np
 
-from ...entropy import pack_uint64, read_uvarint, unpack_uint64, write_uvarint
-from ...errors import FormatError, OptionError
-from ...layout import empty_motion
-from ...motion import AnyMotion, Motion
+from mocapz.errors import FormatError, OptionError
+from mocapz.format.entropy import pack_uint64, read_uvarint, unpack_uint64, write_uvarint
+from mocapz.format.layout import empty_motion
+from mocapz.model.motion import AnyMotion, Motion
 
 
 @dataclass

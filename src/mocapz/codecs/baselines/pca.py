@@ -17,10 +17,8 @@ from typing import Any
 
 import numpy as np
 
-from ...errors import FormatError
-from ...motion import AnyMotion, Motion
-from .. import CodecInfo
-from .common import (
+from mocapz.codecs import CodecInfo
+from mocapz.codecs.baselines.common import (
     check_options,
     f32_array,
     f32_bytes,
@@ -34,6 +32,8 @@ from .common import (
     uvarints,
     values_of,
 )
+from mocapz.errors import FormatError
+from mocapz.model.motion import AnyMotion, Motion
 
 VERSION = 1
 OPTIONS = {
@@ -91,7 +91,7 @@ def fit(y: np.ndarray, variance: float, components: int | None) -> tuple[np.ndar
 
 
 def scale_of(motion: AnyMotion) -> np.ndarray:
-    from ...layout import layout_dict
+    from mocapz.format.layout import layout_dict
 
     if isinstance(motion, Motion):
         return column_scale(layout_dict(motion))

@@ -8,7 +8,7 @@ that the sum of the worst-case displacements all tracks cause on any body point 
 tolerance, so every decoded sample is within the tolerance of the original. The track's integers are
 range reduced (minus their minimum, stored as a varint); their range gives the track's bit rate (0 bits:
 a constant track). The samples of every non-constant track are stored as time differences, **entropy
-coded** with the range coder of :mod:`mocapz.entropy` (block-adaptive Laplace models).
+coded** with the range coder of :mod:`mocapz.format.entropy` (block-adaptive Laplace models).
 
 Options: ``max_error``: position error threshold, file units or with a unit (``"1cm"``, ``"4mm"``);
 default 1 mm when the file's unit is known, else 1/1000 of the clip's bounding-box diagonal.
@@ -21,13 +21,13 @@ from typing import Any
 
 import numpy as np
 
-from ...entropy import decode_int_matrix, encode_int_matrix, pack_uint64, unpack_uint64, unzigzag, zigzag
-from ...errors import FormatError, OptionError
-from ...motion import AnyMotion, Motion
-from ...skeleton import Skeleton
-from ...units import parse_length
-from .. import CodecInfo
-from .common import check_options, finish, gaps_bytes, gaps_from, layout_columns, values_of
+from mocapz.codecs import CodecInfo
+from mocapz.codecs.baselines.common import check_options, finish, gaps_bytes, gaps_from, layout_columns, values_of
+from mocapz.errors import FormatError, OptionError
+from mocapz.format.entropy import decode_int_matrix, encode_int_matrix, pack_uint64, unpack_uint64, unzigzag, zigzag
+from mocapz.model.motion import AnyMotion, Motion
+from mocapz.model.skeleton import Skeleton
+from mocapz.model.units import parse_length
 
 VERSION = 1
 OPTIONS = {"max_error": "position error threshold, file units or with a unit (1cm, 4mm); default 1 mm"}
@@ -65,7 +65,7 @@ def skeleton_tolerances(sk: Skeleton, channels: np.ndarray, max_error: float) ->
     parents = sk.point_parents
     n_p = sk.n_points
     # longest local translation of every point over the clip (position channels replace offsets)
-    from ...kinematics import local_translations
+    from mocapz.model.kinematics import local_translations
 
     trans = local_translations(sk, channels) if len(channels) else np.broadcast_to(sk.offsets, (1, n_j, 3))
     seg = np.zeros(n_p)

@@ -21,10 +21,8 @@ from typing import Any
 
 import numpy as np
 
-from ...errors import FormatError
-from ...motion import AnyMotion
-from .. import CodecInfo
-from .common import (
+from mocapz.codecs import CodecInfo
+from mocapz.codecs.baselines.common import (
     check_options,
     f32_array,
     f32_bytes,
@@ -38,8 +36,10 @@ from .common import (
     uvarints,
     values_of,
 )
-from .pca import column_scale, components_for, fit, scale_of
-from .subsample import interpolate, key_frames
+from mocapz.codecs.baselines.pca import column_scale, components_for, fit, scale_of
+from mocapz.codecs.baselines.subsample import interpolate, key_frames
+from mocapz.errors import FormatError
+from mocapz.model.motion import AnyMotion
 
 VERSION = 1
 OPTIONS = {

@@ -15,10 +15,8 @@ from typing import Any
 import numpy as np
 from scipy.interpolate import CubicSpline
 
-from ...errors import FormatError
-from ...motion import AnyMotion
-from .. import CodecInfo
-from .common import (
+from mocapz.codecs import CodecInfo
+from mocapz.codecs.baselines.common import (
     check_options,
     f32_array,
     f32_bytes,
@@ -31,6 +29,8 @@ from .common import (
     uvarints,
     values_of,
 )
+from mocapz.errors import FormatError
+from mocapz.model.motion import AnyMotion
 
 VERSION = 1
 OPTIONS = {"factor": "keep every N-th frame (and the last), cubic spline in between (default 4)"}

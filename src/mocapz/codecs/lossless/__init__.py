@@ -3,14 +3,14 @@
 Values are turned into integers (the file's decimals, or the float bit patterns when the decimals are
 unknown), predicted from the two previous frames (second differences) and from the channels of the same
 joint already coded in the frame (integer linear prediction), and the residuals are range coded with
-block-adaptive Laplace models (:mod:`mocapz.entropy`).
+block-adaptive Laplace models (:mod:`mocapz.format.entropy`).
 """
 
 from __future__ import annotations
 
-from .. import CodecInfo
-from .decode import decode
-from .encode import encode
+from mocapz.codecs import CodecInfo
+from mocapz.codecs.lossless.decode import decode
+from mocapz.codecs.lossless.encode import encode
 
 VERSION = 1
 

@@ -6,11 +6,11 @@ from typing import Any
 
 import numpy as np
 
-from ...entropy import decode_int_matrix, unpack_uint64, unzigzag
-from ...errors import FormatError
-from ...layout import empty_motion
-from .integers import REP_DECIMAL, REPRESENTATIONS, from_integers
-from .predict import cross_term, predictor_columns
+from mocapz.codecs.lossless.integers import REP_DECIMAL, REPRESENTATIONS, from_integers
+from mocapz.codecs.lossless.predict import cross_term, predictor_columns
+from mocapz.errors import FormatError
+from mocapz.format.entropy import decode_int_matrix, unpack_uint64, unzigzag
+from mocapz.format.layout import empty_motion
 
 
 def _groups(layout: dict[str, Any]) -> tuple[int, list[list[int]]]:

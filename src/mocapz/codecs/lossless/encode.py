@@ -4,10 +4,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from ...entropy import encode_int_matrix, pack_uint64, zigzag
-from ...motion import AnyMotion, Motion
-from .integers import to_integers
-from .predict import cross_term, fit_coef, predictor_columns
+from mocapz.codecs.lossless.integers import to_integers
+from mocapz.codecs.lossless.predict import cross_term, fit_coef, predictor_columns
+from mocapz.format.entropy import encode_int_matrix, pack_uint64, zigzag
+from mocapz.model.motion import AnyMotion, Motion
 
 
 def column_groups(motion: AnyMotion) -> list[list[int]]:
@@ -41,7 +41,7 @@ def value_matrix(motion: AnyMotion) -> tuple[np.ndarray, np.ndarray | None]:
 def encode(motion: AnyMotion, **options: object) -> dict[str, bytes]:
     """Encode a motion losslessly; returns the container sections."""
     if options:
-        from ...errors import OptionError
+        from mocapz.errors import OptionError
 
         raise OptionError(f"the lossless codec takes no options (got {', '.join(options)})")
     values, gaps = value_matrix(motion)

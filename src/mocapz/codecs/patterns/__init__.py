@@ -7,10 +7,10 @@ normalisation, adaptive K-means pattern databases, pattern-index coding, boundar
 
 from __future__ import annotations
 
-from .. import CodecInfo
-from .decode import decode
-from .encode import encode
-from .options import OPTIONS
+from mocapz.codecs import CodecInfo
+from mocapz.codecs.patterns.decode import decode
+from mocapz.codecs.patterns.encode import encode
+from mocapz.codecs.patterns.options import OPTIONS
 
 VERSION = 1
 

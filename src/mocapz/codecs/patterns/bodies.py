@@ -14,14 +14,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ...motion import MarkerMotion, Motion
-from .decode import params_bytes
-from .gaps import encode_mask, fill_gaps
-from .heading import measure_yaw, rotate, up_axis
-from .hierarchy import Hierarchy
-from .pipeline import NodeCoded, NodeSeries, Settings, code_node
-from .quantise import delta_step, encode_trajectory
-from .skeletal import HEAD_TO_HEIGHT, SkeletalFeatures, varying_positions
+from mocapz.codecs.patterns.decode import params_bytes
+from mocapz.codecs.patterns.gaps import encode_mask, fill_gaps
+from mocapz.codecs.patterns.heading import measure_yaw, rotate, up_axis
+from mocapz.codecs.patterns.hierarchy import Hierarchy
+from mocapz.codecs.patterns.pipeline import NodeCoded, NodeSeries, Settings, code_node
+from mocapz.codecs.patterns.quantise import delta_step, encode_trajectory
+from mocapz.codecs.patterns.skeletal import HEAD_TO_HEIGHT, SkeletalFeatures, varying_positions
+from mocapz.model.motion import MarkerMotion, Motion
 
 MARKER_ROOT_STEP = 0.004  # root quantisation steps, fractions of the ADDH (see Settings.root_step)
 JOINT_ROOT_STEP = 0.02

@@ -6,15 +6,15 @@ from typing import Any
 
 import numpy as np
 
-from ...errors import FormatError
-from ...layout import empty_motion, skeleton_from_dict
-from .gaps import decode_mask
-from .heading import rotate
-from .hierarchy import Hierarchy
-from .pipeline import reconstruct
-from .quantise import decode_patterns, decode_trajectory
-from .segments import decode_segments
-from .skeletal import SkeletalFeatures
+from mocapz.codecs.patterns.gaps import decode_mask
+from mocapz.codecs.patterns.heading import rotate
+from mocapz.codecs.patterns.hierarchy import Hierarchy
+from mocapz.codecs.patterns.pipeline import reconstruct
+from mocapz.codecs.patterns.quantise import decode_patterns, decode_trajectory
+from mocapz.codecs.patterns.segments import decode_segments
+from mocapz.codecs.patterns.skeletal import SkeletalFeatures
+from mocapz.errors import FormatError
+from mocapz.format.layout import empty_motion, skeleton_from_dict
 
 FLAG_HEADING = 1
 

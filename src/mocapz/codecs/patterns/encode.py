@@ -6,16 +6,16 @@ from typing import Any
 
 import numpy as np
 
-from ...errors import OptionError
-from ...layout import layout_dict
-from ...motion import AnyMotion, MarkerMotion
-from ...units import parse_length
-from .bodies import CodedClips, code_clips
-from .decode import decode
-from .options import settings_from
-from .pipeline import Settings
-from .prepare import Prepared, prepare
-from .rate import Target, search
+from mocapz.codecs.patterns.bodies import CodedClips, code_clips
+from mocapz.codecs.patterns.decode import decode
+from mocapz.codecs.patterns.options import settings_from
+from mocapz.codecs.patterns.pipeline import Settings
+from mocapz.codecs.patterns.prepare import Prepared, prepare
+from mocapz.codecs.patterns.rate import Target, search
+from mocapz.errors import OptionError
+from mocapz.format.layout import layout_dict
+from mocapz.model.motion import AnyMotion, MarkerMotion
+from mocapz.model.units import parse_length
 
 
 def encode(motion: AnyMotion, **options: Any) -> dict[str, bytes]:

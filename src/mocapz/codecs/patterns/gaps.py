@@ -10,8 +10,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ...entropy import pack_uint64, unpack_uint64
-from ...errors import FormatError
+from mocapz.errors import FormatError
+from mocapz.format.entropy import pack_uint64, unpack_uint64
 
 
 def fill_gaps(positions: np.ndarray) -> np.ndarray:

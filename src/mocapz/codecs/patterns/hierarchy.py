@@ -15,8 +15,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from ...entropy import read_uvarint, write_uvarint
-from ...errors import FormatError, MocapzError
+from mocapz.errors import FormatError, MocapzError
+from mocapz.format.entropy import read_uvarint, write_uvarint
 
 
 @dataclass

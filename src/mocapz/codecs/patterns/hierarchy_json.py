@@ -24,9 +24,9 @@ from typing import Any
 
 import numpy as np
 
-from ...errors import OptionError
-from .hierarchy import Hierarchy, Node, topological
-from .marker_tree import attach_by_rigidity
+from mocapz.codecs.patterns.hierarchy import Hierarchy, Node, topological
+from mocapz.codecs.patterns.marker_tree import attach_by_rigidity
+from mocapz.errors import OptionError
 
 
 def _fail(path: Path, problem: str) -> OptionError:

@@ -11,8 +11,8 @@ import re
 
 import numpy as np
 
-from ...errors import MocapzError
-from .hierarchy import Hierarchy, Node, topological
+from mocapz.codecs.patterns.hierarchy import Hierarchy, Node, topological
+from mocapz.errors import MocapzError
 
 # ------------------------------------------------------------------ standard marker names
 # node -> (parent node, preferred reference markers, members). CMU / Vicon Plug-in-Gait names.

@@ -27,9 +27,9 @@ from typing import Any
 
 import numpy as np
 
-from ...errors import OptionError
-from .kmeans import AVE, MAX
-from .pipeline import Settings
+from mocapz.codecs.patterns.kmeans import AVE, MAX
+from mocapz.codecs.patterns.pipeline import Settings
+from mocapz.errors import OptionError
 
 OPTIONS: dict[str, str] = {
     "max_arms": "target ARMS, file units or with a unit (6.5mm); searched, checked by decoding",

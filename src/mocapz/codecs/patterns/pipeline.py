@@ -12,12 +12,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .kmeans import MAX, adaptive_kmeans
-from .normalise import denormalise, normalise, normalise_mask
-from .quantise import encode_patterns
-from .segment import lengths_of, partition
-from .segments import encode_segments
-from .smooth import smooth_boundaries
+from mocapz.codecs.patterns.kmeans import MAX, adaptive_kmeans
+from mocapz.codecs.patterns.normalise import denormalise, normalise, normalise_mask
+from mocapz.codecs.patterns.quantise import encode_patterns
+from mocapz.codecs.patterns.segment import lengths_of, partition
+from mocapz.codecs.patterns.segments import encode_segments
+from mocapz.codecs.patterns.smooth import smooth_boundaries
 
 
 @dataclass

@@ -7,14 +7,14 @@ from typing import Any
 
 import numpy as np
 
-from ...errors import FormatError, OptionError
-from ...motion import AnyMotion, MarkerMotion
-from .hierarchy import Hierarchy
-from .hierarchy_json import hierarchy_from_json
-from .marker_tree import HEAD_DIAGONALS, build_marker_hierarchy, canonical_label
-from .options import parse_weights
-from .skeletal import HEAD_TO_HEIGHT, skeleton_addh
-from .skeleton_tree import build_skeleton_hierarchy
+from mocapz.codecs.patterns.hierarchy import Hierarchy
+from mocapz.codecs.patterns.hierarchy_json import hierarchy_from_json
+from mocapz.codecs.patterns.marker_tree import HEAD_DIAGONALS, build_marker_hierarchy, canonical_label
+from mocapz.codecs.patterns.options import parse_weights
+from mocapz.codecs.patterns.skeletal import HEAD_TO_HEIGHT, skeleton_addh
+from mocapz.codecs.patterns.skeleton_tree import build_skeleton_hierarchy
+from mocapz.errors import FormatError, OptionError
+from mocapz.model.motion import AnyMotion, MarkerMotion
 
 ADDH_FRAMES = 200  # paper §V.a: the head diagonals are averaged over the first frames
 

@@ -4,7 +4,7 @@ A pattern (``L`` frames x ``D`` values) is coded as its first frame plus ``L - 1
 are quantised uniformly with ``bits`` bits over their range (8 in the paper); the first frames use the
 same step. Quantisation is closed-loop (each delta is taken from the previous *reconstructed* frame), so
 errors do not accumulate along the pattern. The quantisation parameters travel as float32; the integer
-symbols are entropy coded by the range coder of :mod:`mocapz.entropy` (the deltas after a lossless
+symbols are entropy coded by the range coder of :mod:`mocapz.format.entropy` (the deltas after a lossless
 difference along time, which keeps the adaptive Laplace models narrow).
 
 The root trajectory (absolute positions of the root marker, or the root joint's channels) is coded per
@@ -19,7 +19,8 @@ import struct
 import numpy as np
 from scipy.ndimage import gaussian_filter1d
 
-from ...entropy import (
+from mocapz.errors import FormatError
+from mocapz.format.entropy import (
     decode_int_matrix,
     encode_int_matrix,
     pack_uint64,
@@ -29,7 +30,6 @@ from ...entropy import (
     write_uvarint,
     zigzag,
 )
-from ...errors import FormatError
 
 ROBUST = 99.5  # percentile of |delta| taken as the range (rarer, larger deltas are escaped exactly)
 

@@ -17,10 +17,10 @@ from typing import Any
 
 import numpy as np
 
-from ...errors import TargetError
-from ...metrics import evaluate
-from ...motion import AnyMotion, MarkerMotion
-from .pipeline import Settings
+from mocapz.codecs.patterns.pipeline import Settings
+from mocapz.errors import TargetError
+from mocapz.metrics.figures import evaluate
+from mocapz.model.motion import AnyMotion, MarkerMotion
 
 TOL_RANGE = (0.002, 0.4)  # searched clustering thresholds, fractions of the ADDH
 BITS_RANGE = (2, 10)

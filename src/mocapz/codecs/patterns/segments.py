@@ -15,8 +15,15 @@ from __future__ import annotations
 
 import numpy as np
 
-from ...entropy import HAVE_CONSTRICTION, constriction, pack_uint64, read_uvarint, unpack_uint64, write_uvarint
-from ...errors import FormatError
+from mocapz.errors import FormatError
+from mocapz.format.entropy import (
+    HAVE_CONSTRICTION,
+    constriction,
+    pack_uint64,
+    read_uvarint,
+    unpack_uint64,
+    write_uvarint,
+)
 
 CODER_RANGE = 1
 CODER_ZSTD = 2

@@ -17,10 +17,10 @@ import warnings
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from ...entropy import pack_uint64, read_uvarint, unpack_uint64, write_uvarint
-from ...errors import FormatError
-from ...skeleton import Skeleton
-from .quantise import decode_trajectory
+from mocapz.codecs.patterns.quantise import decode_trajectory
+from mocapz.errors import FormatError
+from mocapz.format.entropy import pack_uint64, read_uvarint, unpack_uint64, write_uvarint
+from mocapz.model.skeleton import Skeleton
 
 HEAD_TO_HEIGHT = 0.11  # ADDH / body height of the CMU subjects (01_01.c3d: 194 mm / ~1.75 m)
 

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ...skeleton import Skeleton
-from .hierarchy import Hierarchy, Node, topological
+from mocapz.codecs.patterns.hierarchy import Hierarchy, Node, topological
+from mocapz.model.skeleton import Skeleton
 
 
 def build_skeleton_hierarchy(skeleton: Skeleton) -> Hierarchy:

@@ -6,9 +6,9 @@ geodesic coordinates as the IK's warm start, outlier frames coded apart, and rat
 
 from __future__ import annotations
 
-from .. import CodecInfo
-from .decode import decode
-from .encode import encode
+from mocapz.codecs import CodecInfo
+from mocapz.codecs.pga.decode import decode
+from mocapz.codecs.pga.encode import encode
 
 VERSION = 1
 

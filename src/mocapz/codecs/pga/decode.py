@@ -7,15 +7,12 @@ from typing import Any
 
 import numpy as np
 
-from ...errors import FormatError
-from ...layout import empty_motion, skeleton_from_dict
-from ...skeleton import Skeleton
-from . import lifting
-from .effectors import find_effectors
-from .ik import IKProblem, solve
-from .model import PGAModel
-from .params import PGASettings
-from .pipeline import (
+from mocapz.codecs.pga import lifting
+from mocapz.codecs.pga.effectors import find_effectors
+from mocapz.codecs.pga.ik import IKProblem, solve
+from mocapz.codecs.pga.model import PGAModel
+from mocapz.codecs.pga.params import PGASettings
+from mocapz.codecs.pga.pipeline import (
     channels_from_rotations,
     dequantise_model,
     inner_joints,
@@ -25,6 +22,9 @@ from .pipeline import (
     targets_in_root_frame,
     unpack_matrices,
 )
+from mocapz.errors import FormatError
+from mocapz.format.layout import empty_motion, skeleton_from_dict
+from mocapz.model.skeleton import Skeleton
 
 
 def stream_count(s: PGASettings, n_other: int) -> int:
@@ -68,7 +68,7 @@ def decode_channels(skeleton: Skeleton, s: PGASettings, sections: dict[str, byte
 
 
 def decode_outliers(data: bytes, count: int, n_channels: int) -> np.ndarray:
-    from ...entropy import unpack_uint64, unzigzag
+    from mocapz.format.entropy import unpack_uint64, unzigzag
 
     raw = unzigzag(unpack_uint64(data))
     if raw.size != count * n_channels + 1 or not 0 <= raw[0] <= 9:

@@ -15,14 +15,14 @@ from __future__ import annotations
 
 import numpy as np
 
-from ...api import read_container
-from ...errors import OptionError
-from ...kinematics import forward_kinematics
-from ...layout import empty_motion, skeleton_from_dict
-from ...motion import Motion
-from .decode import decode_channels, decode_streams
-from .effectors import find_effectors
-from .params import PGASettings
+from mocapz.api import read_container
+from mocapz.codecs.pga.decode import decode_channels, decode_streams
+from mocapz.codecs.pga.effectors import find_effectors
+from mocapz.codecs.pga.params import PGASettings
+from mocapz.errors import OptionError
+from mocapz.format.layout import empty_motion, skeleton_from_dict
+from mocapz.model.kinematics import forward_kinematics
+from mocapz.model.motion import Motion
 
 
 def _open(data: bytes) -> tuple[dict, dict, PGASettings, np.ndarray]:

@@ -4,12 +4,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from ...skeleton import Skeleton
+from mocapz.model.skeleton import Skeleton
 
 
 def rest_positions(skeleton: Skeleton) -> np.ndarray:
     """Rest-pose positions ``(points, 3)`` (all rotations zero, offsets only)."""
-    from ...kinematics import chain
+    from mocapz.model.kinematics import chain
 
     n = skeleton.n_joints
     rot = np.broadcast_to(np.eye(3), (1, n, 3, 3)).copy()
@@ -39,7 +39,7 @@ def find_effectors(skeleton: Skeleton, names: list[str] | None = None) -> np.nda
     if names:
         missing = [n for n in names if n not in points]
         if missing:
-            from ...errors import OptionError
+            from mocapz.errors import OptionError
 
             raise OptionError(f"unknown effector joint(s): {', '.join(missing)} (known: {', '.join(points)})")
         return np.array([points.index(n) for n in names], dtype=np.int64)

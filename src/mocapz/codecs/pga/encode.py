@@ -7,15 +7,12 @@ from typing import Any
 
 import numpy as np
 
-from ...entropy import pack_uint64, zigzag
-from ...kinematics import forward_kinematics
-from ...motion import Motion
-from . import lifting, so3
-from .decode import make_problem
-from .effectors import find_effectors
-from .model import PGAModel, fit_pga
-from .params import PGASettings
-from .pipeline import (
+from mocapz.codecs.pga import lifting, so3
+from mocapz.codecs.pga.decode import make_problem
+from mocapz.codecs.pga.effectors import find_effectors
+from mocapz.codecs.pga.model import PGAModel, fit_pga
+from mocapz.codecs.pga.params import PGASettings
+from mocapz.codecs.pga.pipeline import (
     Clip,
     analyse,
     check_skeleton,
@@ -26,6 +23,9 @@ from .pipeline import (
     quantise_model,
     targets_in_root_frame,
 )
+from mocapz.format.entropy import pack_uint64, zigzag
+from mocapz.model.kinematics import forward_kinematics
+from mocapz.model.motion import Motion
 
 
 def detect_outliers(motion: Motion, factor: float = 15.0) -> list[int]:
@@ -41,7 +41,7 @@ def detect_outliers(motion: Motion, factor: float = 15.0) -> list[int]:
         return []
     sk = motion.skeleton
     inner = inner_joints(sk)
-    from ...kinematics import local_rotations
+    from mocapz.model.kinematics import local_rotations
 
     rot = local_rotations(sk, motion.channels)[:, inner]
     n = len(rot)
@@ -139,6 +139,6 @@ def encode_outliers(motion: Motion, frames: list[int]) -> bytes:
 
 def encode(motion: Motion, **options: Any) -> dict[str, bytes]:
     """Container entry point (options: see :func:`mocapz.codecs.pga.options.parse_options`)."""
-    from .ratecontrol import encode_with_options
+    from mocapz.codecs.pga.ratecontrol import encode_with_options
 
     return encode_with_options(motion, **options)

@@ -18,9 +18,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ...skeleton import Skeleton
-from . import so3
-from .model import PGAModel
+from mocapz.codecs.pga import so3
+from mocapz.codecs.pga.model import PGAModel
+from mocapz.model.skeleton import Skeleton
 
 
 @dataclass

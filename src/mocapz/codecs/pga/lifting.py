@@ -18,7 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import so3
+from mocapz.codecs.pga import so3
 
 # Prediction stencils for the odd sample at 0 from its neighbours at -3, -1, +1, +3 (in level steps),
 # keyed by which of (-3, +1, +3) exist (-1 always does): (offsets, weights) of the cubic / quadratic /

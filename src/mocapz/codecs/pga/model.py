@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import so3
+from mocapz.codecs.pga import so3
 
 
 @dataclass

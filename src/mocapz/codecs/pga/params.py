@@ -7,8 +7,8 @@ from dataclasses import dataclass, field, fields
 
 import numpy as np
 
-from ...entropy import read_uvarint, write_uvarint
-from ...errors import FormatError, OptionError
+from mocapz.errors import FormatError, OptionError
+from mocapz.format.entropy import read_uvarint, write_uvarint
 
 
 @dataclass

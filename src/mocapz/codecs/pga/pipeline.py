@@ -8,13 +8,13 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from ...entropy import decode_int_matrix, encode_int_matrix
-from ...errors import FormatError, OptionError
-from ...kinematics import local_rotations, local_translations
-from ...skeleton import Skeleton
-from . import so3
-from .effectors import rest_positions
-from .model import PGAModel
+from mocapz.codecs.pga import so3
+from mocapz.codecs.pga.effectors import rest_positions
+from mocapz.codecs.pga.model import PGAModel
+from mocapz.errors import FormatError, OptionError
+from mocapz.format.entropy import decode_int_matrix, encode_int_matrix
+from mocapz.model.kinematics import local_rotations, local_translations
+from mocapz.model.skeleton import Skeleton
 
 
 def inner_joints(skeleton: Skeleton) -> np.ndarray:
@@ -173,7 +173,7 @@ def unwrap_like(values: np.ndarray, reference: np.ndarray, period: float) -> np.
 # ----------------------------------------------------------------- int matrices
 def pack_matrices(mats: list[np.ndarray]) -> bytes:
     """Entropy-code int matrices, one length-prefixed stream each, concatenated."""
-    from ...entropy import write_uvarint
+    from mocapz.format.entropy import write_uvarint
 
     out = bytearray()
     for m in mats:
@@ -183,7 +183,7 @@ def pack_matrices(mats: list[np.ndarray]) -> bytes:
 
 
 def unpack_matrices(data: bytes, count: int) -> list[np.ndarray]:
-    from ...entropy import read_uvarint
+    from mocapz.format.entropy import read_uvarint
 
     out, pos = [], 0
     for _ in range(count):

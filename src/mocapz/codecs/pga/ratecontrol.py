@@ -15,15 +15,15 @@ from typing import Any
 
 import numpy as np
 
-from ...errors import OptionError, TargetError
-from ...kinematics import forward_kinematics
-from ...metrics import distortion_pct
-from ...motion import Motion
-from ...units import parse_length
-from .decode import decode_channels, decode_rows
-from .encode import Prepared, encode_prepared, prepare
-from .model import k_for_variance
-from .params import PGASettings
+from mocapz.codecs.pga.decode import decode_channels, decode_rows
+from mocapz.codecs.pga.encode import Prepared, encode_prepared, prepare
+from mocapz.codecs.pga.model import k_for_variance
+from mocapz.codecs.pga.params import PGASettings
+from mocapz.errors import OptionError, TargetError
+from mocapz.metrics.figures import distortion_pct
+from mocapz.model.kinematics import forward_kinematics
+from mocapz.model.motion import Motion
+from mocapz.model.units import parse_length
 
 _KNOWN = {"geodesics", "lod_root", "lod_effectors", "lod_coords", "effectors", "max_distortion", "max_error",
           "bits", "pos_step", "coord_step", "rot_step", "paper", "iterations", "variance", "outliers"}
@@ -102,7 +102,7 @@ def parse_options(motion: Motion, options: dict[str, Any]) -> tuple[dict[str, An
 def encode_with_options(motion: Motion, **options: Any) -> dict[str, bytes]:
     """Encode with fixed settings, or search them when a target is given."""
     fixed, target, names = parse_options(motion, options)
-    from .effectors import find_effectors
+    from mocapz.codecs.pga.effectors import find_effectors
 
     effectors = list(find_effectors(motion.skeleton, names)) if names else None
     outl = options.get("outliers")

@@ -21,8 +21,8 @@ import zlib
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from .entropy import read_uvarint, write_uvarint
-from .errors import FormatError
+from mocapz.errors import FormatError
+from mocapz.format.entropy import read_uvarint, write_uvarint
 
 MAGIC = b"MCZ\x1a"
 FORMAT_VERSION = 1

@@ -1,4 +1,4 @@
-"""``mocapz compress DIR -o OUTDIR``: the command-line side of batch compression (see :mod:`mocapz.batch`).
+"""``mocapz compress DIR -o OUTDIR``: the command-line side of batch compression (see :mod:`mocapz.parallel.batch`).
 
 ``mocapz compress`` calls :func:`run_batch_compress` when its INPUT is a folder. Output: one line per
 failed clip on stderr (``mocapz: error: PATH: reason``), then a summary line on stdout (or one JSON object
@@ -14,8 +14,8 @@ from typing import Any
 
 import click
 
-from .batch import BATCH_EXTENSIONS, BatchReport, compress_folder, discover
-from .errors import MocapzError
+from mocapz.errors import MocapzError
+from mocapz.parallel.batch import BATCH_EXTENSIONS, BatchReport, compress_folder, discover
 
 # Codec options naming files: made absolute, so workers whose working folder differs (Dask) find them.
 _PATH_OPTIONS = ("hierarchy", "weights")

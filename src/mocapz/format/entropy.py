@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 import zstandard
 
-from .errors import FormatError
+from mocapz.errors import FormatError
 
 try:  # pragma: no cover - exercised on platforms without wheels
     import constriction

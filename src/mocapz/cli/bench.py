@@ -29,8 +29,8 @@ def bench(paths: tuple[Path, ...], codecs: str | None, quick: bool, out_dir: Pat
     PATHS are motion files or folders (searched recursively); default: the CMU clips of ../shared/data
     (or $MOCAPZ_DATA/cmu). A codec that fails on a clip is recorded with its message; the run goes on.
     """
-    from .bench import run_bench, write_report
-    from .bench.sweeps import parse_codecs
+    from mocapz.bench import run_bench, write_report
+    from mocapz.bench.sweeps import parse_codecs
 
     names = parse_codecs(codecs)  # reject unknown names before any work
     command = "mocapz " + " ".join(shlex.quote(a) for a in sys.argv[1:]) if sys.argv[1:2] == ["bench"] else None

@@ -1,6 +1,6 @@
 """``mocapz view``: see an original and a decoded motion together (HTML player, GIF or MP4).
 
-Registered in :mod:`mocapz.cli` with ``cli.add_command(view)``.
+Registered in :mod:`mocapz.cli.main` with ``cli.add_command(view)``.
 """
 
 from __future__ import annotations
@@ -9,7 +9,7 @@ from pathlib import Path
 
 import click
 
-from .errors import MocapzError, OptionError
+from mocapz.errors import MocapzError, OptionError
 
 PAGE_SUFFIXES = (".html", ".htm")
 
@@ -37,8 +37,8 @@ def view(original: Path, decoded: Path | None, output: Path | None, animation: P
     ORIGINAL is a motion file (.bvh, .amc, .c3d, .trc) or a .mcz; DECODED, optional, is compared with it.
     Write an HTML page with -o (play, scrub, orbit the camera, error strip) and / or an animation with --gif.
     """
-    from .units import parse_length
-    from .viewer import load_motion, prepare_view, render_animation, write_page
+    from mocapz.model.units import parse_length
+    from mocapz.viewer import load_motion, prepare_view, render_animation, write_page
 
     if output is None and animation is None:
         raise click.UsageError("nothing to write: give -o PAGE.html and / or --gif OUT.gif")

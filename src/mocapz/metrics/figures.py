@@ -12,8 +12,8 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from .errors import MocapzError
-from .motion import AnyMotion, MarkerMotion, Motion
+from mocapz.errors import MocapzError
+from mocapz.model.motion import AnyMotion, MarkerMotion, Motion
 
 
 @dataclass
@@ -55,7 +55,7 @@ class ErrorReport:
 def positions_pair(original: AnyMotion, decoded: AnyMotion) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Original and decoded positions ``(frames, points, 3)`` and a validity mask ``(frames, points)``."""
     if isinstance(original, Motion) and isinstance(decoded, Motion):
-        from .kinematics import forward_kinematics
+        from mocapz.model.kinematics import forward_kinematics
 
         if decoded.n_frames != original.n_frames:
             raise MocapzError(

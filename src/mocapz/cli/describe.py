@@ -5,8 +5,8 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from .errors import FormatError
-from .motion import Motion
+from mocapz.errors import FormatError
+from mocapz.model.motion import Motion
 
 
 def describe_motion(motion: Any) -> dict[str, Any]:
@@ -30,11 +30,11 @@ def describe(path: Path) -> dict[str, Any]:
         raise FormatError(path, "no such file")
     suffix = path.suffix.lower()
     if suffix == ".mczdb":
-        from .library import describe_library
+        from mocapz.library import describe_library
 
         return describe_library(path)
     if suffix == ".mcz":
-        from .api import decompress, read_container
+        from mocapz.api import decompress, read_container
 
         data = path.read_bytes()
         box, layout = read_container(data, path)
@@ -46,7 +46,7 @@ def describe(path: Path) -> dict[str, Any]:
         d.update(describe_motion(motion))
         d["ratio"] = motion.raw_bytes / len(data)
         return d
-    from .io import load
+    from mocapz.io import load
 
     motion = load(path)
     d = {"file": str(path), "file_bytes": path.stat().st_size}

@@ -13,8 +13,8 @@ from typing import Any
 
 import click
 
-from . import __version__
-from .errors import FormatError, MocapzError
+from mocapz import __version__
+from mocapz.errors import FormatError, MocapzError
 
 # Codec options exposed on the command line: name -> (type, help). Each is passed to the codec only
 # when given, so every codec validates its own options.
@@ -96,16 +96,16 @@ def compress(input: Path, output: Path, codec: str, asf: Path | None, force: boo
              jobs: int | None, scheduler: str | None, **codec_options: Any) -> None:
     """Compress INPUT (.bvh, .amc, .c3d, .trc) into OUTPUT.mcz, or every clip under folder INPUT into folder
     OUTPUT (one .mcz per clip, same layout; in parallel; exit code 1 if any clip failed)."""
-    from .api import compress as do_compress
-    from .io import load
-    from .io.common import atomic_write
-    from .metrics import size_figures
+    from mocapz.api import compress as do_compress
+    from mocapz.io import load
+    from mocapz.io.common import atomic_write
+    from mocapz.metrics.figures import size_figures
 
     options = {k: v for k, v in codec_options.items() if v is not None}
     if input.is_dir():
         if asf is not None:
             raise MocapzError("--asf applies to one .amc file; in a folder each .amc uses the .asf beside it")
-        from .cli_batch import run_batch_compress
+        from mocapz.cli.batch import run_batch_compress
 
         sys.exit(run_batch_compress(input, output, codec, options, jobs, scheduler, force, as_json))
     if jobs is not None or scheduler is not None:
@@ -139,8 +139,8 @@ def compress(input: Path, output: Path, codec: str, asf: Path | None, force: boo
 @click.option("--json", "as_json", is_flag=True, help="print one JSON object")
 def decompress(input: Path, output: Path, clip: str | None, force: bool, as_json: bool) -> None:
     """Decode INPUT.mcz into a motion file (format from OUTPUT's extension)."""
-    from .api import decompress as do_decompress
-    from .io import MOTION_EXTENSIONS, save
+    from mocapz.api import decompress as do_decompress
+    from mocapz.io import MOTION_EXTENSIONS, save
 
     if output.suffix.lower() not in MOTION_EXTENSIONS:
         raise MocapzError(f"{output}: unknown output extension {output.suffix!r} "
@@ -148,13 +148,13 @@ def decompress(input: Path, output: Path, clip: str | None, force: bool, as_json
     data = _read_bytes(input)
     t0 = time.perf_counter()
     if clip is None and input.suffix.lower() == ".mczdb":
-        from .library import Library
+        from mocapz.library import Library
 
         names = [c["name"] if isinstance(c, dict) else str(c) for c in Library.from_bytes(data, input).index["clips"]]
         raise MocapzError(f"{input}: a library holds several clips; choose one with --clip "
                           f"({', '.join(names[:10])}{', ...' if len(names) > 10 else ''})")
     if clip is not None:
-        from .library import read_clip
+        from mocapz.library import read_clip
 
         motion = read_clip(data, clip, input)
     else:
@@ -170,7 +170,7 @@ def decompress(input: Path, output: Path, clip: str | None, force: bool, as_json
 
 
 def _read_bytes(path: Path) -> bytes:
-    from .errors import FormatError
+    from mocapz.errors import FormatError
 
     if not path.exists():
         raise FormatError(path, "no such file")
@@ -181,10 +181,10 @@ def _read_bytes(path: Path) -> bytes:
 
 def _load_any(path: Path) -> Any:
     """A motion from a motion file or a .mcz (decoded)."""
-    from .io import load
+    from mocapz.io import load
 
     if path.suffix.lower() == ".mcz":
-        from .api import decompress as do_decompress
+        from mocapz.api import decompress as do_decompress
 
         return do_decompress(_read_bytes(path), path)
     return load(path)
@@ -195,7 +195,7 @@ def _load_any(path: Path) -> Any:
 @click.option("--json", "as_json", is_flag=True, help="print one JSON object")
 def info(file: Path, as_json: bool) -> None:
     """Describe a motion file, a .mcz file or a .mczdb library."""
-    from .inspect import describe
+    from mocapz.cli.describe import describe
 
     d = describe(file)
     if as_json:
@@ -218,8 +218,8 @@ def info(file: Path, as_json: bool) -> None:
 @click.option("-f", "--force", is_flag=True, help="overwrite an existing --plot file")
 def eval_cmd(original: Path, decoded: Path, as_json: bool, plot: Path | None, force: bool) -> None:
     """Error figures (METRICS.md) of DECODED (motion file or .mcz) against ORIGINAL."""
-    from .io import load
-    from .metrics import evaluate, size_figures
+    from mocapz.io import load
+    from mocapz.metrics.figures import evaluate, size_figures
 
     orig = load(original)
     dec = _load_any(decoded)
@@ -228,7 +228,7 @@ def eval_cmd(original: Path, decoded: Path, as_json: bool, plot: Path | None, fo
     except MocapzError as exc:
         raise MocapzError(f"{decoded}: {exc}") from None
     if plot is not None:
-        from .plots import plot_errors
+        from mocapz.metrics.plots import plot_errors
 
         plot_errors(orig, dec, plot, force=force,
                     compressed_bytes=decoded.stat().st_size if decoded.suffix.lower() == ".mcz" else None)
@@ -254,9 +254,9 @@ def eval_cmd(original: Path, decoded: Path, as_json: bool, plot: Path | None, fo
 
 def _register_commands() -> None:
     """Commands that live in their own modules."""
-    from .cli_bench import bench
-    from .cli_db import compress_db
-    from .cli_view import view
+    from mocapz.cli.bench import bench
+    from mocapz.cli.db import compress_db
+    from mocapz.cli.view import view
 
     cli.add_command(view)
     cli.add_command(bench)

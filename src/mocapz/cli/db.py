@@ -1,6 +1,6 @@
 """``mocapz compress-db INPUT... -o LIBRARY.mczdb``: many clips into one pattern library.
 
-Registered in :mod:`mocapz.cli` with ``cli.add_command(compress_db)``. One clip is read back with
+Registered in :mod:`mocapz.cli.main` with ``cli.add_command(compress_db)``. One clip is read back with
 ``mocapz decompress LIBRARY.mczdb --clip NAME -o OUT`` and the clips are listed by ``mocapz info``.
 """
 
@@ -13,7 +13,7 @@ from typing import Any
 
 import click
 
-from .errors import OptionError
+from mocapz.errors import OptionError
 
 
 def _weights(pairs: tuple[str, ...], weights_file: str | None) -> Any:
@@ -55,10 +55,10 @@ def compress_db(inputs: tuple[Path, ...], output: Path, force: bool, as_json: bo
     of them. A clip that cannot be read is reported and left out (exit code 1)."""
     import sys
 
-    from .batch import discover, load_many
-    from .errors import MocapzError
-    from .io.common import atomic_write
-    from .library import compress_library
+    from mocapz.errors import MocapzError
+    from mocapz.io.common import atomic_write
+    from mocapz.library import compress_library
+    from mocapz.parallel.batch import discover, load_many
 
     if output.suffix.lower() != ".mczdb":
         raise OptionError(f"{output}: a library file must end in .mczdb")

@@ -39,8 +39,8 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
-from .errors import FormatError, MocapzError, OptionError
-from .motion import AnyMotion
+from mocapz.errors import FormatError, MocapzError, OptionError
+from mocapz.model.motion import AnyMotion
 
 BATCH_EXTENSIONS = (".bvh", ".amc", ".c3d", ".trc")
 OUTPUT_SUFFIX = ".mcz"
@@ -181,9 +181,9 @@ def compress_clip(job: ClipJob, codec: str = "lossless", options: dict[str, Any]
     Any error (unreadable file, codec refusing the data, existing output without ``force``...) is
     caught and returned in :attr:`ClipResult.error`, so one bad clip never stops a batch.
     """
-    from .api import compress
-    from .io import load
-    from .io.common import atomic_write
+    from mocapz.api import compress
+    from mocapz.io import load
+    from mocapz.io.common import atomic_write
 
     t0 = time.perf_counter()
     c0 = time.process_time()
@@ -311,9 +311,9 @@ def _import_modules(modules: Sequence[str]) -> None:
 def clip_modules(codec: str) -> list[str]:
     """Modules a :func:`compress_clip` worker needs: readers, container and the codec's encoder."""
     mods = ["numpy", "mocapz.api", "mocapz.io", "mocapz.io.bvh", "mocapz.io.asfamc", "mocapz.io.c3d",
-            "mocapz.io.trc", "mocapz.batch"]
+            "mocapz.io.trc", "mocapz.parallel.batch"]
     with contextlib.suppress(Exception):
-        from .codecs import get_codec
+        from mocapz.codecs import get_codec
 
         mods.append(get_codec(codec).encode.__module__)
     return mods
@@ -568,7 +568,7 @@ class Pool:
 
 def load_motion(path: str | os.PathLike[str]) -> AnyMotion:
     """:func:`mocapz.io.load` as a picklable worker function (ASF beside an AMC found as usual)."""
-    from .io import load
+    from mocapz.io import load
 
     return load(path)
 
@@ -758,7 +758,7 @@ def compress_folder(input_dir: str | os.PathLike[str], output_dir: str | os.Path
         :class:`~mocapz.errors.MocapzError` only for problems with the whole batch (no such folder, unknown
         codec, unreachable scheduler...). The bytes written do not depend on ``jobs`` or ``scheduler``.
     """
-    from .codecs import get_codec
+    from mocapz.codecs import get_codec
 
     get_codec(codec)  # unknown codec: one error, not one per clip
     out_root = Path(output_dir)

@@ -10,7 +10,7 @@ from typing import Any
 
 import numpy as np
 
-from .skeleton import Skeleton
+from mocapz.model.skeleton import Skeleton
 
 
 @dataclass
@@ -62,7 +62,7 @@ class Motion:
 
     def positions(self) -> np.ndarray:
         """Global positions of all joints and end sites, ``(frames, points, 3)``, file units."""
-        from .kinematics import forward_kinematics
+        from mocapz.model.kinematics import forward_kinematics
 
         return forward_kinematics(self.skeleton, self.channels)[0]
 

@@ -6,7 +6,7 @@ One image, three panels (matplotlib, Agg backend, no display needed):
 * the error over time: largest, 99th percentile and mean over the points of each frame;
 * the error of every point over time as a heat map.
 
-Errors are METRICS.md position errors (``mocapz.metrics.positions_pair``), in centimetres where the file's
+Errors are METRICS.md position errors (``mocapz.metrics.figures.positions_pair``), in centimetres where the file's
 unit is known; samples missing in the original (marker gaps) are left out.
 """
 
@@ -19,10 +19,10 @@ from typing import Any
 
 import numpy as np
 
-from .errors import MocapzError, OptionError
-from .io.common import atomic_write
-from .metrics import evaluate, point_errors, positions_pair
-from .motion import AnyMotion, Motion
+from mocapz.errors import MocapzError, OptionError
+from mocapz.io.common import atomic_write
+from mocapz.metrics.figures import evaluate, point_errors, positions_pair
+from mocapz.model.motion import AnyMotion, Motion
 
 PLOT_SUFFIXES = (".png", ".svg", ".pdf")
 

@@ -13,11 +13,11 @@ from typing import Any
 import numpy as np
 import zstandard
 
-from .entropy import read_uvarint, unzigzag, write_uvarint, zigzag
-from .errors import FormatError
-from .io.common import detect_decimals
-from .motion import AnyMotion, MarkerMotion, Motion
-from .skeleton import Skeleton
+from mocapz.errors import FormatError
+from mocapz.format.entropy import read_uvarint, unzigzag, write_uvarint, zigzag
+from mocapz.io.common import detect_decimals
+from mocapz.model.motion import AnyMotion, MarkerMotion, Motion
+from mocapz.model.skeleton import Skeleton
 
 _DICT_TEXT = (
     '{"kind":"skeleton","names":["Hips","LHipJoint","LeftUpLeg","LeftLeg","LeftFoot","LeftToeBase",'

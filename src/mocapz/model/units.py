@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import re
 
-from .errors import OptionError
-from .motion import UNIT_CM
+from mocapz.errors import OptionError
+from mocapz.model.motion import UNIT_CM
 
 _LENGTH = re.compile(r"^\s*([0-9]*\.?[0-9]+(?:[eE][-+]?[0-9]+)?)\s*([a-zA-Z]*)\s*$")
 

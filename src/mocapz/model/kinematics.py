@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from .skeleton import Skeleton
+from mocapz.model.skeleton import Skeleton
 
 
 def local_rotations(skeleton: Skeleton, channels: np.ndarray) -> np.ndarray:
