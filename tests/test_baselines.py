@@ -18,7 +18,7 @@ from mocapz.codecs import codec_names, get_codec
 from mocapz.codecs.baselines import quant, segpca, subsample
 from mocapz.codecs.baselines.common import values_of
 from mocapz.format.container import Container
-from mocapz.format.layout import decode_layout
+from mocapz.format.layout import decode_header
 
 BASELINES = ("subsample", "pca", "segpca", "quant")
 BVH = "cmu/bvh/09_06.bvh"  # 142 frames, 96 channels, T-pose in frame 1
@@ -212,8 +212,7 @@ def test_segpca_segments_cover_clip() -> None:
     lengths = segpca.segment(v.x, 0.99, 6, 15, 480)
     assert sum(lengths) == m.n_frames and all(n >= 1 for n in lengths) and max(lengths) <= 480
     box = Container.from_bytes(mocapz.compress(m, codec="segpca", variance=0.99, components=6, max_segment=480))
-    layout = decode_layout(box.layout)
-    assert mocapz.decompress(box.to_bytes()).n_frames == layout["frames"]
+    assert mocapz.decompress(box.to_bytes()).n_frames == decode_header(box.layout).frames
 
 
 # ---------------------------------------------------------------- errors
@@ -239,13 +238,13 @@ def test_bad_options(codec: str, options: dict[str, object]) -> None:
 def test_corrupted_sections(codec: str) -> None:
     m = _load(BVH)
     box = Container.from_bytes(mocapz.compress(m, codec=codec))
-    layout = decode_layout(box.layout)
+    header = decode_header(box.layout)
     info = get_codec(codec)
     for name in box.sections:
         broken = dict(box.sections)
         broken[name] = broken[name][: len(broken[name]) // 2]
         try:
-            info.decode(broken, layout)
+            info.decode(broken, header)
         except FormatError:
             continue
         except (ValueError, IndexError, KeyError, TypeError):
@@ -253,4 +252,4 @@ def test_corrupted_sections(codec: str) -> None:
     missing = dict(box.sections)
     missing.pop(next(iter(missing)))
     with pytest.raises(FormatError):
-        info.decode(missing, layout)
+        info.decode(missing, header)

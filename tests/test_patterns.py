@@ -23,9 +23,9 @@ from mocapz.codecs.patterns.quantise import (
 from mocapz.codecs.patterns.segment import partition
 from mocapz.codecs.patterns.segments import decode_segments, encode_segments
 from mocapz.errors import FormatError, MocapzError, OptionError
-from mocapz.format.layout import layout_dict
 from mocapz.io import load
 from mocapz.metrics.figures import evaluate
+from mocapz.model.header import ClipHeader
 from mocapz.model.motion import MarkerMotion
 
 C3D = "cmu/c3d/01_01.c3d"
@@ -283,4 +283,4 @@ def test_corrupted_stream_is_a_format_error(c3d_short: MarkerMotion) -> None:
     sections = dict(box.sections)
     sections["s3"] = sections["s3"][:5]
     with pytest.raises(FormatError):
-        decode(sections, layout_dict(c3d_short))
+        decode(sections, ClipHeader.of(c3d_short))

@@ -8,7 +8,8 @@ from typing import Any
 from mocapz.codecs import get_codec
 from mocapz.errors import FormatError, OptionError
 from mocapz.format.container import Container
-from mocapz.format.layout import decode_layout, encode_layout
+from mocapz.format.layout import decode_header, encode_layout
+from mocapz.model.header import ClipHeader
 from mocapz.model.motion import AnyMotion, Motion
 
 
@@ -28,19 +29,19 @@ def compress(motion: AnyMotion, codec: str = "lossless", **options: Any) -> byte
     return Container(info.name, info.version, encode_layout(motion), sections).to_bytes()
 
 
-def read_container(data: bytes, path: str | Path | None = None) -> tuple[Container, dict[str, Any]]:
+def read_container(data: bytes, path: str | Path | None = None) -> tuple[Container, ClipHeader]:
     """Parse container bytes and their layout header (errors name ``path``)."""
     box = Container.from_bytes(data, path)
     try:
-        layout = decode_layout(box.layout)
+        header = decode_header(box.layout)
     except FormatError as exc:
         raise FormatError(path, exc.problem) from None
-    return box, layout
+    return box, header
 
 
 def decompress(data: bytes, path: str | Path | None = None) -> AnyMotion:
     """Decode the bytes of a ``.mcz`` file back into a motion."""
-    box, layout = read_container(data, path)
+    box, header = read_container(data, path)
     try:
         info = get_codec(box.codec)
     except OptionError:
@@ -49,7 +50,7 @@ def decompress(data: bytes, path: str | Path | None = None) -> AnyMotion:
         raise FormatError(path, f"codec {box.codec!r} version {box.codec_version} is not supported "
                                 f"(this mocapz has version {info.version})")
     try:
-        return info.decode(box.sections, layout)
+        return info.decode(box.sections, header)
     except FormatError as exc:
         raise FormatError(path, exc.problem) from None
     except (ValueError, IndexError, KeyError, TypeError) as exc:

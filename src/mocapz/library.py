@@ -49,7 +49,7 @@ from mocapz.codecs.patterns.skeletal import skeleton_addh
 from mocapz.errors import FormatError, MocapzError, OptionError
 from mocapz.format.container import read_sections, seal, write_sections
 from mocapz.format.entropy import pack_uint64, read_uvarint, safe_zstd_decompress, unpack_uint64, write_uvarint
-from mocapz.format.layout import decode_layout, encode_layout
+from mocapz.format.layout import decode_header, encode_layout
 from mocapz.model.motion import AnyMotion, MarkerMotion
 
 MAGIC = b"MCZL\x1a"
@@ -224,10 +224,10 @@ def read_clip(data: bytes, clip: str, path: str | os.PathLike[str] | None = None
         for k in range(1, len(hier.nodes)):
             dbs[k] = decode_patterns(_get(lib, f"g{g}.d{k}"))[0]
             priors[k] = unpack_uint64(_get(lib, f"g{g}.u{k}")).astype(np.int64)
-        layout = decode_layout(_get(lib, f"c{j}.L"))
+        header = decode_header(_get(lib, f"c{j}.L"))
         prefix = f"c{j}."
         own = {key[len(prefix) :]: v for key, v in lib.sections.items() if key.startswith(prefix) and key != f"c{j}.L"}
-        return decode_clip(layout, hier, own, dbs, priors)
+        return decode_clip(header, hier, own, dbs, priors)
     except FormatError as exc:
         raise FormatError(path, exc.problem) from None
     except (ValueError, IndexError, KeyError, TypeError) as exc:

@@ -37,7 +37,7 @@ def describe(path: Path) -> dict[str, Any]:
         from mocapz.api import decompress, read_container
 
         data = path.read_bytes()
-        box, layout = read_container(data, path)
+        box, _ = read_container(data, path)
         d = {"file": str(path), "container_bytes": len(data), "codec": box.codec,
              "codec_version": box.codec_version,
              "sections": [f"{k}={len(v)}B" for k, v in box.sections.items()],

@@ -16,7 +16,8 @@ import zstandard
 from mocapz.errors import FormatError
 from mocapz.format.entropy import read_uvarint, unzigzag, write_uvarint, zigzag
 from mocapz.io.common import detect_decimals
-from mocapz.model.motion import AnyMotion, MarkerMotion, Motion
+from mocapz.model.header import KEPT_METADATA, ClipHeader
+from mocapz.model.motion import AnyMotion, Motion
 from mocapz.model.skeleton import Skeleton
 
 _DICT_TEXT = (
@@ -44,9 +45,6 @@ _SHORT = {"Xposition": "Xpos", "Yposition": "Ypos", "Zposition": "Zpos",
           "Xrotation": "Xrot", "Yrotation": "Yrot", "Zrotation": "Zrot"}
 _LONG = {v: k for k, v in _SHORT.items()}
 
-# metadata keys carried through compression (a writer may need them)
-_KEEP_META = ("frame_time", "file_bytes", "first_frame", "trc_header", "amc_header", "amc_first_frame",
-              "trc_path_fields", "trc_newline", "trc_blank_line", "trc_trailing_tab", "trc_time_decimals")
 
 
 def _num(v: float) -> float | int:
@@ -95,7 +93,7 @@ def skeleton_from_dict(d: dict[str, Any]) -> Skeleton:
 
 def layout_dict(motion: AnyMotion) -> dict[str, Any]:
     """Everything about a motion except its sample values."""
-    meta = {k: motion.metadata[k] for k in _KEEP_META if k in motion.metadata}
+    meta = {k: motion.metadata[k] for k in KEPT_METADATA if k in motion.metadata}
     if isinstance(motion, Motion):
         return {
             "kind": "skeleton",
@@ -209,32 +207,22 @@ def _check_layout(d: dict[str, Any]) -> None:
         raise FormatError(None, f"corrupted layout header (frame rate {rate})")
 
 
-def empty_motion(layout: dict[str, Any], values: np.ndarray) -> AnyMotion:
-    """Build a Motion / MarkerMotion from a layout and decoded values.
+def decode_header(data: bytes) -> ClipHeader:
+    """The typed header codecs get (:class:`~mocapz.model.header.ClipHeader`) from layout bytes."""
+    return header_from_layout(decode_layout(data))
 
-    ``values`` is ``(frames, channels)`` for skeletons, ``(frames, markers, 3)`` for markers.
-    """
+
+def header_from_layout(layout: dict[str, Any]) -> ClipHeader:
+    """A :class:`~mocapz.model.header.ClipHeader` from a decoded layout dict (checked by ``decode_layout``)."""
     try:
+        common = dict(frames=int(layout["frames"]), frame_rate=float(layout["frame_rate"]), name=str(layout["name"]),
+                      source_format=str(layout["source_format"]), metadata=dict(layout.get("metadata", {})))
         if layout["kind"] == "skeleton":
             dec = layout.get("decimals")
-            return Motion(
-                skeleton=skeleton_from_dict(layout),
-                channels=values,
-                frame_rate=float(layout["frame_rate"]),
-                name=layout["name"],
-                source_format=layout["source_format"],
-                decimals=None if dec is None else np.asarray(dec, dtype=np.int64),
-                metadata=dict(layout.get("metadata", {})),
-            )
-        return MarkerMotion(
-            labels=list(layout["labels"]),
-            positions=values,
-            frame_rate=float(layout["frame_rate"]),
-            units=layout["units"],
-            name=layout["name"],
-            source_format=layout["source_format"],
-            decimals=layout.get("decimals"),
-            metadata=dict(layout.get("metadata", {})),
-        )
-    except (KeyError, TypeError, ValueError) as exc:
+            return ClipHeader("skeleton", skeleton=skeleton_from_dict(layout),
+                              decimals=None if dec is None else np.asarray(dec, dtype=np.int64), **common)
+        labels = [str(x) for x in layout["labels"]]
+        return ClipHeader("markers", labels=labels, units=str(layout["units"]), decimals=layout.get("decimals"),
+                          **common)
+    except (KeyError, TypeError, ValueError, OverflowError) as exc:
         raise FormatError(None, f"corrupted layout header ({exc})") from None

@@ -21,7 +21,7 @@ import numpy as np
 
 from mocapz.errors import FormatError, OptionError
 from mocapz.format.entropy import pack_uint64, read_uvarint, unpack_uint64, write_uvarint
-from mocapz.format.layout import empty_motion
+from mocapz.model.header import ClipHeader
 from mocapz.model.motion import AnyMotion, Motion
 
 
@@ -73,17 +73,12 @@ def fill_gaps(x: np.ndarray, missing: np.ndarray) -> np.ndarray:
     return out
 
 
-def layout_columns(layout: dict[str, Any]) -> tuple[int, np.ndarray, float]:
-    """Column count, rotation mask ``(columns,)`` and full-turn period from a container layout."""
-    if layout["kind"] == "skeleton":
-        names = [s[i : i + 4] for s in layout["channels"] for i in range(0, len(s), 4)]
-        rot = np.array([n.endswith("rot") for n in names], dtype=bool)
-        period = 360.0 if layout.get("angle_unit", "deg") == "deg" else 2 * math.pi
-        return len(names), rot, period
-    return 3 * len(layout["labels"]), np.zeros(3 * len(layout["labels"]), dtype=bool), 0.0
+def layout_columns(header: ClipHeader) -> tuple[int, np.ndarray, float]:
+    """Column count, rotation mask ``(columns,)`` and full-turn period of a clip."""
+    return header.n_columns, header.rotation_mask, header.period
 
 
-def finish(layout: dict[str, Any], x: np.ndarray, gaps: np.ndarray | None, round_decimals: bool) -> AnyMotion:
+def finish(header: ClipHeader, x: np.ndarray, gaps: np.ndarray | None, round_decimals: bool) -> AnyMotion:
     """Decoded motion from a decoded value matrix ``(frames, columns)``.
 
     Skeletons: rotation channels wrapped into ``[-half turn, half turn)``; with ``round_decimals`` and a
@@ -91,16 +86,16 @@ def finish(layout: dict[str, Any], x: np.ndarray, gaps: np.ndarray | None, round
     (the file's precision; the decoded motion then says so), else the decoded motion's decimals are
     unknown. Markers: NaN where ``gaps`` ``(frames, markers)`` is True.
     """
-    frames = int(layout["frames"])
-    cols, rot, period = layout_columns(layout)
+    frames = header.frames
+    cols, rot, period = layout_columns(header)
     x = np.array(x, dtype=np.float64, copy=True).reshape(frames, cols)
-    if layout["kind"] == "skeleton":
+    if header.skeleton is not None:
         if rot.any():
             half = period / 2
             x[:, rot] = np.mod(x[:, rot] + half, period) - half
-        motion = empty_motion(layout, x)
+        motion = header.motion(x)
         assert isinstance(motion, Motion)
-        dec = layout.get("decimals")
+        dec = header.decimals
         if round_decimals and dec is not None and len(dec):
             d = int(max(dec))
             motion.channels = np.round(motion.channels * 10.0**d) / 10.0**d
@@ -111,7 +106,7 @@ def finish(layout: dict[str, Any], x: np.ndarray, gaps: np.ndarray | None, round
     pos = x.reshape(frames, -1, 3)
     if gaps is not None:
         pos = np.where(gaps[..., None], np.nan, pos)
-    motion = empty_motion(layout, pos)
+    motion = header.motion(pos)
     motion.decimals = None
     return motion
 
@@ -122,11 +117,11 @@ def gaps_bytes(gaps: np.ndarray) -> bytes:
     return pack_uint64(np.packbits(gaps.ravel()).astype(np.uint64))
 
 
-def gaps_from(sections: dict[str, bytes], layout: dict[str, Any]) -> np.ndarray | None:
+def gaps_from(sections: dict[str, bytes], header: ClipHeader) -> np.ndarray | None:
     """The gap mask ``(frames, markers)`` stored by :func:`gaps_bytes`, or ``None``."""
-    if "gaps" not in sections or layout["kind"] != "markers":
+    if "gaps" not in sections or header.skeleton is not None:
         return None
-    frames, markers = int(layout["frames"]), len(layout["labels"])
+    frames, markers = header.frames, len(header.labels)
     bits = unpack_uint64(sections["gaps"]).astype(np.uint8)
     flat = np.unpackbits(bits)
     if flat.size < frames * markers:

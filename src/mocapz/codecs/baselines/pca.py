@@ -33,6 +33,7 @@ from mocapz.codecs.baselines.common import (
     values_of,
 )
 from mocapz.errors import FormatError
+from mocapz.model.header import ClipHeader
 from mocapz.model.motion import AnyMotion, Motion
 
 VERSION = 1
@@ -43,21 +44,22 @@ OPTIONS = {
 DEFAULT_VARIANCE = 0.95
 
 
-def column_scale(layout: dict[str, Any]) -> np.ndarray:
+def column_scale(header: ClipHeader) -> np.ndarray:
     """Per-column factor ``(columns,)`` putting values in length units before PCA.
 
     Rotation channels: radians per angle unit times the mean non-zero bone length (offsets and end
     sites) of the skeleton; position channels and marker coordinates: 1.
     """
-    cols, rot, _ = layout_columns(layout)
+    cols, rot, _ = layout_columns(header)
     scale = np.ones(cols)
-    if layout["kind"] == "skeleton" and rot.any():
-        offs = [np.asarray(o, dtype=np.float64) for o in layout["offsets"]]
-        offs += [np.asarray(o, dtype=np.float64) for _, o, _ in layout["end_sites"]]
+    sk = header.skeleton
+    if sk is not None and rot.any():
+        offs = [np.asarray(o, dtype=np.float64) for o in sk.offsets]
+        offs += [np.asarray(o, dtype=np.float64) for _, o, _ in sk.end_sites]
         lengths = np.linalg.norm(np.array(offs).reshape(-1, 3), axis=1)
         lengths = lengths[lengths > 1e-9]
         bone = float(lengths.mean()) if lengths.size else 1.0
-        per_unit = np.pi / 180.0 if layout.get("angle_unit", "deg") == "deg" else 1.0
+        per_unit = np.pi / 180.0 if sk.angle_unit == "deg" else 1.0
         scale[rot] = per_unit * bone
     return scale
 
@@ -91,10 +93,9 @@ def fit(y: np.ndarray, variance: float, components: int | None) -> tuple[np.ndar
 
 
 def scale_of(motion: AnyMotion) -> np.ndarray:
-    from mocapz.format.layout import layout_dict
 
     if isinstance(motion, Motion):
-        return column_scale(layout_dict(motion))
+        return column_scale(ClipHeader.of(motion))
     return np.ones(3 * motion.n_markers)
 
 
@@ -114,10 +115,10 @@ def encode(motion: AnyMotion, **options: Any) -> dict[str, bytes]:
     return sections
 
 
-def decode(sections: dict[str, bytes], layout: dict[str, Any]) -> AnyMotion:
+def decode(sections: dict[str, bytes], header: ClipHeader) -> AnyMotion:
     """Inverse of :func:`encode`: ``coef @ basis + mean``, unscaled."""
-    frames = int(layout["frames"])
-    cols, _, _ = layout_columns(layout)
+    frames = header.frames
+    cols, _, _ = layout_columns(header)
     try:
         (k,), _ = read_uvarints(sections["head"], 1)
         mean = f32_array(sections["mean"], (cols,))
@@ -126,7 +127,7 @@ def decode(sections: dict[str, bytes], layout: dict[str, Any]) -> AnyMotion:
     except KeyError as exc:
         raise FormatError(None, f"corrupted pca stream (missing section {exc})") from None
     y = coef @ basis + mean
-    return finish(layout, y / column_scale(layout), gaps_from(sections, layout), round_decimals=True)
+    return finish(header, y / column_scale(header), gaps_from(sections, header), round_decimals=True)
 
 
 INFO = CodecInfo(name="pca", version=VERSION, kinds=("skeleton", "markers"), encode=encode, decode=decode,

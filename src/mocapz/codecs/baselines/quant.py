@@ -25,6 +25,7 @@ from mocapz.codecs import CodecInfo
 from mocapz.codecs.baselines.common import check_options, finish, gaps_bytes, gaps_from, layout_columns, values_of
 from mocapz.errors import FormatError, OptionError
 from mocapz.format.entropy import decode_int_matrix, encode_int_matrix, pack_uint64, unpack_uint64, unzigzag, zigzag
+from mocapz.model.header import ClipHeader
 from mocapz.model.motion import AnyMotion, Motion
 from mocapz.model.skeleton import Skeleton
 from mocapz.model.units import parse_length
@@ -164,10 +165,10 @@ def encode(motion: AnyMotion, **options: Any) -> dict[str, bytes]:
     return sections
 
 
-def decode(sections: dict[str, bytes], layout: dict[str, Any]) -> AnyMotion:
+def decode(sections: dict[str, bytes], header: ClipHeader) -> AnyMotion:
     """Inverse of :func:`encode`: integers times their track's step."""
-    frames = int(layout["frames"])
-    cols, _, _ = layout_columns(layout)
+    frames = header.frames
+    cols, _, _ = layout_columns(header)
     try:
         code = unpack_uint64(sections["code"])
         bits = unpack_uint64(sections["bits"])
@@ -185,7 +186,7 @@ def decode(sections: dict[str, bytes], layout: dict[str, Any]) -> AnyMotion:
     except KeyError as exc:
         raise FormatError(None, f"corrupted quant stream (missing section {exc})") from None
     x = q * step_of(code)
-    return finish(layout, x, gaps_from(sections, layout), round_decimals=False)
+    return finish(header, x, gaps_from(sections, header), round_decimals=False)
 
 
 def track_bits(sections: dict[str, bytes]) -> np.ndarray:

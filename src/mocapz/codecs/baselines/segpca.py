@@ -39,6 +39,7 @@ from mocapz.codecs.baselines.common import (
 from mocapz.codecs.baselines.pca import column_scale, components_for, fit, scale_of
 from mocapz.codecs.baselines.subsample import interpolate, key_frames
 from mocapz.errors import FormatError
+from mocapz.model.header import ClipHeader
 from mocapz.model.motion import AnyMotion
 
 VERSION = 1
@@ -107,10 +108,10 @@ def encode(motion: AnyMotion, **options: Any) -> dict[str, bytes]:
     return sections
 
 
-def decode(sections: dict[str, bytes], layout: dict[str, Any]) -> AnyMotion:
+def decode(sections: dict[str, bytes], header: ClipHeader) -> AnyMotion:
     """Inverse of :func:`encode`: per segment, splined key coefficients times its basis plus its mean."""
-    frames = int(layout["frames"])
-    cols, _, _ = layout_columns(layout)
+    frames = header.frames
+    cols, _, _ = layout_columns(header)
     try:
         (key, count), _ = read_uvarints(sections["head"], 2)
         head, _ = read_uvarints(sections["segs"], 2 * count)
@@ -135,7 +136,7 @@ def decode(sections: dict[str, bytes], layout: dict[str, Any]) -> AnyMotion:
         start += n
     if pos != len(data):
         raise FormatError(None, "corrupted segpca stream (data size)")
-    return finish(layout, y / column_scale(layout), gaps_from(sections, layout), round_decimals=True)
+    return finish(header, y / column_scale(header), gaps_from(sections, header), round_decimals=True)
 
 
 INFO = CodecInfo(name="segpca", version=VERSION, kinds=("skeleton", "markers"), encode=encode, decode=decode,

@@ -30,6 +30,7 @@ from mocapz.codecs.baselines.common import (
     values_of,
 )
 from mocapz.errors import FormatError
+from mocapz.model.header import ClipHeader
 from mocapz.model.motion import AnyMotion
 
 VERSION = 1
@@ -71,10 +72,10 @@ def encode(motion: AnyMotion, **options: Any) -> dict[str, bytes]:
     return sections
 
 
-def decode(sections: dict[str, bytes], layout: dict[str, Any]) -> AnyMotion:
+def decode(sections: dict[str, bytes], header: ClipHeader) -> AnyMotion:
     """Inverse of :func:`encode` (lossy: spline between key frames)."""
-    frames = int(layout["frames"])
-    cols, _, _ = layout_columns(layout)
+    frames = header.frames
+    cols, _, _ = layout_columns(header)
     try:
         (factor,), _ = read_uvarints(sections["head"], 1)
         if factor < 1:
@@ -84,7 +85,7 @@ def decode(sections: dict[str, bytes], layout: dict[str, Any]) -> AnyMotion:
     except KeyError as exc:
         raise FormatError(None, f"corrupted subsample stream (missing section {exc})") from None
     x = interpolate(keys, values, frames)
-    return finish(layout, x, gaps_from(sections, layout), round_decimals=True)
+    return finish(header, x, gaps_from(sections, header), round_decimals=True)
 
 
 INFO = CodecInfo(name="subsample", version=VERSION, kinds=("skeleton", "markers"), encode=encode,

@@ -10,25 +10,22 @@ from mocapz.codecs.lossless.integers import REP_DECIMAL, REPRESENTATIONS, from_i
 from mocapz.codecs.lossless.predict import cross_term, predictor_columns
 from mocapz.errors import FormatError
 from mocapz.format.entropy import decode_int_matrix, unpack_uint64, unzigzag
-from mocapz.format.layout import empty_motion
+from mocapz.model.header import ClipHeader
 
 
-def _groups(layout: dict[str, Any]) -> tuple[int, list[list[int]]]:
-    if layout["kind"] == "skeleton":
-        groups, start = [], 0
-        for s in layout["channels"]:
-            n = len(s) // 4
-            groups.append(list(range(start, start + n)))
-            start += n
-        return start, groups
-    m = len(layout["labels"])
+def _groups(header: ClipHeader) -> tuple[int, list[list[int]]]:
+    """Column count and the columns of each joint (or marker): cross-channel prediction stays in a group."""
+    if header.skeleton is not None:
+        groups = [list(range(s.start, s.stop)) for s in header.skeleton.channel_slices()]
+        return header.skeleton.n_channels, groups
+    m = len(header.labels)
     return 3 * m, [[3 * i, 3 * i + 1, 3 * i + 2] for i in range(m)]
 
 
-def decode(sections: dict[str, bytes], layout: dict[str, Any]) -> Any:
+def decode(sections: dict[str, bytes], header: ClipHeader) -> Any:
     """Decode lossless sections back into the exact motion."""
-    frames = int(layout["frames"])
-    cols, groups = _groups(layout)
+    frames = header.frames
+    cols, groups = _groups(header)
     try:
         rep = sections["rep"][0]
         if rep not in REPRESENTATIONS:
@@ -38,7 +35,7 @@ def decode(sections: dict[str, bytes], layout: dict[str, Any]) -> Any:
         raise FormatError(None, f"corrupted lossless stream (missing section {exc})") from None
     decimals = None
     if rep == REP_DECIMAL:
-        dec = layout.get("decimals")
+        dec = header.decimals
         if dec is None:
             raise FormatError(None, "corrupted lossless stream (decimals missing)")
         decimals = np.broadcast_to(np.asarray(dec, dtype=np.int64), (cols,))
@@ -47,9 +44,7 @@ def decode(sections: dict[str, bytes], layout: dict[str, Any]) -> Any:
         bits = unpack_uint64(sections["gaps"]).astype(np.uint8)
         gaps = np.unpackbits(bits)[: frames * cols].astype(bool).reshape(frames, cols)
         values = np.where(gaps, np.nan, values)
-    if layout["kind"] == "markers":
-        values = values.reshape(frames, cols // 3, 3)
-    return empty_motion(layout, values)
+    return header.motion(values.reshape(header.value_shape))
 
 
 def _decode_ints(sections: dict[str, bytes], frames: int, cols: int, groups: list[list[int]]) -> np.ndarray:

@@ -14,7 +14,7 @@ from mocapz.codecs.patterns.quantise import decode_patterns, decode_trajectory
 from mocapz.codecs.patterns.segments import decode_segments
 from mocapz.codecs.patterns.skeletal import SkeletalFeatures
 from mocapz.errors import FormatError
-from mocapz.format.layout import empty_motion, skeleton_from_dict
+from mocapz.model.header import ClipHeader
 
 FLAG_HEADING = 1
 
@@ -24,13 +24,13 @@ def params_bytes(heading: bool, up: int) -> bytes:
     return bytes([FLAG_HEADING if heading else 0, up])
 
 
-def decode(sections: dict[str, bytes], layout: dict[str, Any]) -> Any:
+def decode(sections: dict[str, bytes], header: ClipHeader) -> Any:
     """Decode a single-clip ``.mcz`` payload into a Motion / MarkerMotion."""
     hier = Hierarchy.from_bytes(_need(sections, "h"))
-    if int(layout["frames"]) == 0:
-        return decode_clip(layout, hier, sections, {})
+    if header.frames == 0:
+        return decode_clip(header, hier, sections, {})
     dbs = {k: decode_patterns(_need(sections, f"d{k}"))[0] for k in range(1, len(hier.nodes))}
-    return decode_clip(layout, hier, sections, dbs)
+    return decode_clip(header, hier, sections, dbs)
 
 
 def _need(sections: dict[str, bytes], key: str) -> bytes:
@@ -39,28 +39,23 @@ def _need(sections: dict[str, bytes], key: str) -> bytes:
     return sections[key]
 
 
-def decode_clip(layout: dict[str, Any], hier: Hierarchy, sections: dict[str, bytes],
+def decode_clip(header: ClipHeader, hier: Hierarchy, sections: dict[str, bytes],
                 dbs: dict[int, np.ndarray], priors: dict[int, np.ndarray] | None = None) -> Any:
     """Rebuild one clip from its own sections and the decoded pattern databases of its nodes.
 
     Args:
-        layout: the clip's layout dict (skeleton or marker labels, frame count...).
+        header: the clip's header (skeleton or marker labels, frame count...).
         hier: the hierarchy.
         sections: the clip's sections (``p``, ``r``, ``g``, ``c``, ``s<k>``).
         dbs: node index -> decoded patterns ``(K, L, D)``.
         priors: node index -> shared pattern usage counts (library mode), or None.
     """
-    frames = int(layout["frames"])
+    frames = header.frames
     if frames == 0:
-        shape = (0, len(layout["labels"]), 3) if layout["kind"] == "markers" else (0, _n_channels(layout))
-        return empty_motion(layout, np.zeros(shape))
-    if layout["kind"] == "markers":
-        return empty_motion(layout, _decode_markers(layout, hier, sections, dbs, priors, frames))
-    return empty_motion(layout, _decode_skeletal(layout, hier, sections, dbs, priors, frames))
-
-
-def _n_channels(layout: dict[str, Any]) -> int:
-    return sum(len(c) // 4 for c in layout["channels"])
+        return header.motion(np.zeros(header.value_shape))
+    if header.skeleton is None:
+        return header.motion(_decode_markers(header, hier, sections, dbs, priors, frames))
+    return header.motion(_decode_skeletal(header, hier, sections, dbs, priors, frames))
 
 
 def _node_values(k: int, hier: Hierarchy, sections: dict[str, bytes], dbs: dict[int, np.ndarray],
@@ -73,8 +68,8 @@ def _node_values(k: int, hier: Hierarchy, sections: dict[str, bytes], dbs: dict[
     return reconstruct(patterns, labels, lengths, observed)
 
 
-def _decode_markers(layout, hier, sections, dbs, priors, frames) -> np.ndarray:
-    m = len(layout["labels"])
+def _decode_markers(header, hier, sections, dbs, priors, frames) -> np.ndarray:
+    m = len(header.labels)
     flags, up = _need(sections, "p")[:2]
     root, _ = decode_trajectory(_need(sections, "r"))
     if root.shape[0] != frames:
@@ -95,8 +90,8 @@ def _decode_markers(layout, hier, sections, dbs, priors, frames) -> np.ndarray:
     return out
 
 
-def _decode_skeletal(layout, hier, sections, dbs, priors, frames) -> np.ndarray:
-    sk = skeleton_from_dict(layout)
+def _decode_skeletal(header, hier, sections, dbs, priors, frames) -> np.ndarray:
+    sk = header.skeleton
     const = sections.get("c", b"")
     sf = SkeletalFeatures(sk, 0.0, SkeletalFeatures.varying_from(const, sk.n_channels))
     out = sf.apply_constants(np.zeros((frames, sk.n_channels)), const)

@@ -13,7 +13,7 @@ from mocapz.codecs.patterns.pipeline import Settings
 from mocapz.codecs.patterns.prepare import Prepared, prepare
 from mocapz.codecs.patterns.rate import Target, search
 from mocapz.errors import OptionError
-from mocapz.format.layout import layout_dict
+from mocapz.model.header import ClipHeader
 from mocapz.model.motion import AnyMotion, MarkerMotion
 from mocapz.model.units import parse_length
 
@@ -39,7 +39,7 @@ def encode(motion: AnyMotion, **options: Any) -> dict[str, bytes]:
         return coded.decoded, sections, total_bytes(sections)
 
     def check(sections: dict[str, bytes]) -> float:
-        return target.score(motion, decode(sections, layout_dict(motion)))
+        return target.score(motion, decode(sections, ClipHeader.of(motion)))
 
     return search(motion.name, [motion], settings, target, fixed, prep.addh, run, check)
 

@@ -23,7 +23,7 @@ from mocapz.codecs.pga.pipeline import (
     unpack_matrices,
 )
 from mocapz.errors import FormatError
-from mocapz.format.layout import empty_motion, skeleton_from_dict
+from mocapz.model.header import ClipHeader
 from mocapz.model.skeleton import Skeleton
 
 
@@ -31,16 +31,18 @@ def stream_count(s: PGASettings, n_other: int) -> int:
     return 5 + int(s.use_coords) + int(n_other > 0)
 
 
-def decode(sections: dict[str, bytes], layout: dict[str, Any]) -> Any:
+def decode(sections: dict[str, bytes], header: ClipHeader) -> Any:
     """Container entry point: sections -> Motion."""
-    skeleton = skeleton_from_dict(layout)
-    frames = int(layout["frames"])
+    skeleton = header.skeleton
+    if skeleton is None:
+        raise FormatError(None, "corrupted PGA stream (marker layout)")
+    frames = header.frames
     try:
         settings = PGASettings.from_bytes(sections["params"])
         channels = decode_channels(skeleton, settings, sections, frames)
     except KeyError as exc:
         raise FormatError(None, f"corrupted PGA stream (missing section {exc})") from None
-    motion = empty_motion(layout, channels)
+    motion = header.motion(channels)
     # lossy values: write them with the source's finest precision (at least 4 decimals) in every column,
     # not with per-column counts that fit the source's values only (a constant column may have 0)
     if motion.decimals is not None:

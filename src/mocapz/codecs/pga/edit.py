@@ -4,6 +4,8 @@ A PGA-compressed clip is re-solved with some end-effector trajectories replaced:
 frame, the pose of the clip's own pose space that puts the effectors where asked, so the edited motion
 keeps the style of the original.
 
+The functions here work on a PGA clip's sections and header; :mod:`mocapz.edit` opens ``.mcz`` bytes:
+
 >>> data = mocapz.compress(motion, codec="pga")
 >>> traj = effector_trajectories(data)            # {"LeftToeBase_End": (frames, 3), ...}
 >>> traj["LeftToeBase_End"][100:140, 1] += 10 / motion.skeleton.unit_cm   # lift 10 cm (Y up)
@@ -15,32 +17,30 @@ from __future__ import annotations
 
 import numpy as np
 
-from mocapz.api import read_container
 from mocapz.codecs.pga.decode import decode_channels, decode_streams
 from mocapz.codecs.pga.effectors import find_effectors
 from mocapz.codecs.pga.params import PGASettings
 from mocapz.errors import OptionError
-from mocapz.format.layout import empty_motion, skeleton_from_dict
+from mocapz.model.header import ClipHeader
 from mocapz.model.kinematics import forward_kinematics
 from mocapz.model.motion import Motion
 
 
-def _open(data: bytes) -> tuple[dict, dict, PGASettings, np.ndarray]:
-    box, layout = read_container(data)
-    if box.codec != "pga":
-        raise OptionError(f"editing needs a PGA-compressed clip, this one was written by {box.codec!r}")
-    skeleton = skeleton_from_dict(layout)
-    s = PGASettings.from_bytes(box.sections["params"])
-    eff = np.asarray(s.effectors, dtype=np.int64) if s.effectors else find_effectors(skeleton)
-    return box.sections, layout, s, eff
+def _open(sections: dict[str, bytes], header: ClipHeader) -> tuple[PGASettings, np.ndarray]:
+    if header.skeleton is None:
+        raise OptionError("editing needs a skeletal clip")
+    s = PGASettings.from_bytes(sections["params"])
+    eff = np.asarray(s.effectors, dtype=np.int64) if s.effectors else find_effectors(header.skeleton)
+    return s, eff
 
 
-def effector_trajectories(data: bytes) -> dict[str, np.ndarray]:
+def effector_trajectories(sections: dict[str, bytes], header: ClipHeader) -> dict[str, np.ndarray]:
     """The coded global trajectories ``(frames, 3)`` (file units) of the clip's end effectors, by name:
     the IK's targets, the natural thing to edit. Frames coded apart (outliers) hold their FK positions."""
-    sections, layout, s, eff = _open(data)
-    skeleton = skeleton_from_dict(layout)
-    frames = int(layout["frames"])
+    s, eff = _open(sections, header)
+    skeleton = header.skeleton
+    assert skeleton is not None
+    frames = header.frames
     kept = np.setdiff1d(np.arange(frames), np.asarray(s.outliers, dtype=np.int64))
     d = decode_streams(skeleton, s, sections, len(kept))
     coded = d.root_pos[:, None] + np.einsum("fij,fej->fei", d.root_rot, d.targets)
@@ -50,11 +50,12 @@ def effector_trajectories(data: bytes) -> dict[str, np.ndarray]:
     return {names[e]: pos[:, i].copy() for i, e in enumerate(eff)}
 
 
-def edit(data: bytes, targets: dict[str, np.ndarray], iterations: int = 40, lam_prior: float = 1e-6) -> Motion:
+def edit(sections: dict[str, bytes], header: ClipHeader, targets: dict[str, np.ndarray], iterations: int = 40,
+         lam_prior: float = 1e-6) -> Motion:
     """Re-solve a PGA clip with end-effector trajectories replaced.
 
     Args:
-        data: bytes of a ``.mcz`` written by the PGA codec.
+        sections, header: a clip written by the PGA codec.
         targets: effector name -> new global trajectory ``(frames, 3)`` in file units (all frames of the
             clip; frames coded apart as outliers are kept as they were).
         iterations: LM iterations (more than for plain decoding: the edit moves far from the warm start).
@@ -63,9 +64,10 @@ def edit(data: bytes, targets: dict[str, np.ndarray], iterations: int = 40, lam_
     Returns:
         The edited motion, same skeleton and frame count.
     """
-    sections, layout, s, eff = _open(data)
-    skeleton = skeleton_from_dict(layout)
-    frames = int(layout["frames"])
+    s, eff = _open(sections, header)
+    skeleton = header.skeleton
+    assert skeleton is not None
+    frames = header.frames
     names = skeleton.point_names
     slots = {names[e]: i for i, e in enumerate(eff)}
     kept = np.setdiff1d(np.arange(frames), np.asarray(s.outliers, dtype=np.int64))
@@ -78,4 +80,6 @@ def edit(data: bytes, targets: dict[str, np.ndarray], iterations: int = 40, lam_
             raise OptionError(f"trajectory for {name!r} must be finite with shape ({frames}, 3), got {traj.shape}")
         replace[slots[name]] = traj[kept]
     s2 = s.replace(iterations=iterations, lam_prior=lam_prior)
-    return empty_motion(layout, decode_channels(skeleton, s2, sections, frames, edit=replace))
+    motion = header.motion(decode_channels(skeleton, s2, sections, frames, edit=replace))
+    assert isinstance(motion, Motion)
+    return motion
