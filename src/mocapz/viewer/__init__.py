@@ -8,8 +8,9 @@
 
 from __future__ import annotations
 
+from mocapz.viewer.animation import render_animation
 from mocapz.viewer.data import ViewData, load_motion, prepare_view
+from mocapz.viewer.frame import render_frame
 from mocapz.viewer.page import build_page, write_page
-from mocapz.viewer.render import render_animation, render_frame
 
 __all__ = ["ViewData", "build_page", "load_motion", "prepare_view", "render_animation", "render_frame", "write_page"]

@@ -3,6 +3,10 @@
 Positions are stored as int16 over the clip's bounding box (resolution: box size / 65534, a fraction of a
 millimetre for a human clip), errors as uint8 relative to the clip's largest error, both base64 in a JSON
 block the page's own script reads. Output is deterministic: the same input gives the same bytes.
+
+The page itself is package data in ``assets/``: ``viewer.html`` with ``viewer.css`` and ``viewer.js`` put in
+place, no external resource at all. Its script draws with the 2D canvas API: a perspective camera that orbits a
+target, depth-sorted bones and points, a ground grid with shadows, and an error strip.
 """
 
 from __future__ import annotations
@@ -10,6 +14,8 @@ from __future__ import annotations
 import base64
 import json
 import math
+from functools import cache
+from importlib.resources import files
 from pathlib import Path
 from typing import Any
 
@@ -17,10 +23,26 @@ import numpy as np
 
 from mocapz.io.common import atomic_write
 from mocapz.viewer.data import ViewData, color_scales, default_yaw
-from mocapz.viewer.template import PLACEHOLDER, TEMPLATE
 
 MISSING_I16 = -32768
 MISSING_U8 = 255
+PLACEHOLDER = "__MOCAPZ_DATA__"  # in viewer.html: replaced by the clip's JSON
+ASSET_MARKERS = (("__MOCAPZ_CSS__\n", "viewer.css"), ("__MOCAPZ_JS__\n", "viewer.js"))  # lines of viewer.html
+
+
+def _asset(name: str) -> str:
+    return files("mocapz.viewer").joinpath("assets", name).read_text(encoding="utf-8")
+
+
+@cache
+def page_template() -> str:
+    """The page without its data: ``viewer.html``, each marker line replaced by its file, ``PLACEHOLDER`` kept."""
+    html = _asset("viewer.html")
+    for marker, name in ASSET_MARKERS:
+        if html.count(marker) != 1:
+            raise RuntimeError(f"viewer.html: expected one line {marker.strip()!r}")
+        html = html.replace(marker, _asset(name), 1)
+    return html
 
 
 def _b64(a: np.ndarray) -> str:
@@ -121,7 +143,7 @@ def build_page(view: ViewData) -> str:
     """
     text = json.dumps(page_data(view), ensure_ascii=True, separators=(",", ":"), allow_nan=False)
     text = text.replace("/", "\\/").replace("<", "\\u003c").replace(">", "\\u003e")
-    return TEMPLATE.replace(PLACEHOLDER, text, 1)
+    return page_template().replace(PLACEHOLDER, text, 1)
 
 
 def write_page(view: ViewData, path: str | Path, force: bool = False) -> int:

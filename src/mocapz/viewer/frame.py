@@ -1,23 +1,21 @@
-"""Render the side-by-side animation without a browser: GIF (Pillow) or MP4 (imageio + imageio-ffmpeg).
+"""Draw one frame of the side-by-side animation with Pillow, without a browser.
 
-Frames are drawn with Pillow at twice the output size and reduced (anti-aliasing): original, decoded (points
-coloured by error, green to red) and an overlay, over a ground grid, with the clip's figures on top and the
-error over time below. The camera follows the body from the page's default three-quarter side view.
+Frames are drawn at twice the output size and reduced (anti-aliasing): original, decoded (points coloured by
+error, green to red) and an overlay, over a ground grid, with the clip's figures on top and the error over time
+below. The camera follows the body from the page's default three-quarter side view.
+:mod:`mocapz.viewer.animation` puts the frames together into a GIF or MP4.
 """
 
 from __future__ import annotations
 
 import colorsys
 import math
-from collections.abc import Iterator
 from functools import lru_cache
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from mocapz.errors import MocapzError, OptionError
-from mocapz.io.common import atomic_write
+from mocapz.errors import OptionError
 from mocapz.viewer.data import ViewData, default_yaw
 
 SS = 2  # supersampling factor
@@ -29,10 +27,8 @@ GHOST = (92, 99, 112)
 DISPLACEMENT = (255, 90, 90)
 TEXT = (207, 214, 224)
 DIM = (138, 148, 163)
-MAX_GIF_FRAMES = 600
 HEAD_H = 26  # pixels above the panes (name, figures, legend)
 STRIP_H = 54  # pixels of the error strip below
-ANIMATION_SUFFIXES = (".gif", ".mp4")
 
 
 def error_rgb(e: float, scale: float) -> tuple[int, int, int]:
@@ -167,7 +163,8 @@ def _header(view: ViewData) -> str:
     return view.name + ("   " + " \u00b7 ".join(figs) if figs else "")
 
 
-def _strip_base(view: ViewData, w: int, h: int) -> Any:
+def error_strip(view: ViewData, w: int, h: int) -> Any:
+    """The error-over-time strip, ``w`` x ``h`` at the supersampled size, without the play head."""
     from PIL import Image, ImageDraw
 
     img = Image.new("RGB", (w, h), BG)
@@ -269,7 +266,7 @@ def render_frame(view: ViewData, f: int, width: int = 960, height: int | None = 
         _ramp(draw, rx, 10 * SS, rw, 8 * SS, scale)
         draw.text((rx - 12 * SS, 5 * SS), "0", fill=DIM, font=font)
         draw.text((rx + rw + 6 * SS, 5 * SS), top, fill=DIM, font=font)
-        strip = _strip if _strip is not None else _strip_base(view, W, strip_h * SS)
+        strip = _strip if _strip is not None else error_strip(view, W, strip_h * SS)
         layer.paste(strip, (0, H - strip_h * SS))
         x = 8 * SS + (W - 16 * SS) * (f + 0.5) / view.n_frames
         draw.rectangle((x - SS, H - strip_h * SS + 15 * SS, x + SS, H), fill=(255, 255, 255))
@@ -282,129 +279,3 @@ def render_frame(view: ViewData, f: int, width: int = 960, height: int | None = 
     empty = (panes_px == np.array(BG, dtype=np.uint8)).all(axis=-1)
     panes_px[empty] = np.asarray(grid_img)[empty]  # the grid shows where nothing else is drawn
     return Image.fromarray(out)
-
-
-def animation_frames(view: ViewData, fps: float) -> np.ndarray:
-    """View frame indices sampled at ``fps`` over the clip."""
-    if fps <= 0:
-        raise OptionError("--fps must be positive")
-    n = max(1, int(math.floor(view.n_frames / view.frame_rate * fps + 1e-9)))
-    return np.minimum(np.rint(np.arange(n) / fps * view.frame_rate).astype(np.int64), view.n_frames - 1)
-
-
-def _frames(view: ViewData, idx: np.ndarray, width: int, height: int | None, scale: float | None) -> Iterator[Any]:
-    """Rendered frames for the view frame indices ``idx`` (the error strip is drawn once)."""
-    strip = _strip_base(view, width * SS, STRIP_H * SS) if view.decoded is not None else None
-    for f in idx:
-        yield render_frame(view, int(f), width, height, scale=scale, _strip=strip)
-
-
-def _require_pillow() -> None:
-    try:
-        import PIL  # noqa: F401
-    except ImportError:
-        raise MocapzError("rendering animations needs Pillow (pip install 'mocapz[view]')") from None
-
-
-def render_animation(view: ViewData, path: str | Path, fps: float | None = None, width: int = 960,
-                     height: int | None = None, scale: float | None = None, force: bool = False) -> dict[str, Any]:
-    """Write the side-by-side animation to ``path`` (``.gif``, or ``.mp4`` with imageio-ffmpeg).
-
-    Args:
-        fps: output frame rate (default 20 for GIF, 30 for MP4); the clip plays at its real speed.
-        width, height: output size in pixels (height default: suited to the panes).
-        scale: error shown fully red, file units (default: the view's colour scale or the clip's max error).
-        force: overwrite an existing file.
-
-    Returns:
-        ``{"path", "frames", "fps", "width", "height", "bytes"}``.
-    """
-    _require_pillow()
-    path = Path(path)
-    suffix = path.suffix.lower()
-    if suffix not in ANIMATION_SUFFIXES:
-        raise OptionError(f"{path}: animation must be .gif or .mp4, not {suffix or 'no extension'!r}")
-    if width < 64 or width > 4096:
-        raise OptionError(f"animation width {width} is out of range (64..4096)")
-    fps = float(fps if fps is not None else (20 if suffix == ".gif" else 30))
-    if suffix == ".mp4":  # H.264 in yuv420p needs even sizes
-        width += width % 2
-        height = None if height is None else height + height % 2
-    idx = animation_frames(view, fps)
-    if suffix == ".gif" and len(idx) > MAX_GIF_FRAMES:
-        raise OptionError(f"{path}: {len(idx)} GIF frames is too many (at most {MAX_GIF_FRAMES}): show a part of "
-                          f"the clip with --start / --end, lower --fps, or write an .mp4")
-    if suffix == ".gif":
-        info = _write_gif(view, path, idx, fps, width, height, scale, force)
-    else:
-        info = _write_mp4(view, path, idx, fps, width, height, scale, force)
-    info.update(path=str(path), frames=int(len(idx)), fps=fps, bytes=path.stat().st_size)
-    return info
-
-
-def _write_gif(view: ViewData, path: Path, idx: np.ndarray, fps: float, width: int, height: int | None,
-               scale: float | None, force: bool) -> dict[str, Any]:
-    from PIL import Image
-
-    # One palette for every frame (no flicker, better LZW), from a montage of frames across the clip.
-    picks = sorted({int(idx[k]) for k in np.linspace(0, len(idx) - 1, min(6, len(idx))).round().astype(int)})
-    samples = [render_frame(view, f, width, height, scale=scale) for f in picks]
-    w, h = samples[0].size
-    montage = Image.new("RGB", (w, h * len(samples)))
-    for k, im in enumerate(samples):
-        montage.paste(im, (0, k * h))
-    palette = _gif_palette(montage)
-    frames = (im.quantize(palette=palette, dither=Image.Dither.NONE) for im in _frames(view, idx, width, height, scale))
-    first = next(frames)
-    duration = max(20, int(round(1000.0 / fps / 10.0)) * 10)
-
-    def write(tmp: Path) -> None:
-        first.save(tmp, format="GIF", save_all=True, append_images=frames, duration=duration, loop=0,
-                   optimize=False, disposal=1)
-
-    atomic_write(path, write, force=force)
-    return {"width": w, "height": h}
-
-
-def _gif_palette(montage: Any) -> Any:
-    """A palette image: 48 colours of the error ramp (kept exact) and 207 chosen from sample frames."""
-    from PIL import Image
-
-    ramp = [error_rgb(k / 47, 1.0) for k in range(48)]
-    picked = montage.quantize(colors=207, method=Image.Quantize.MEDIANCUT, dither=Image.Dither.NONE)
-    colours = list(picked.getpalette() or [])[: 3 * 207]
-    colours += [v for rgb in ramp for v in rgb]
-    pal = Image.new("P", (1, 1))
-    pal.putpalette(colours + [0] * (768 - len(colours)))
-    return pal
-
-
-def _write_mp4(view: ViewData, path: Path, idx: np.ndarray, fps: float, width: int, height: int | None,
-               scale: float | None, force: bool) -> dict[str, Any]:
-    """H.264 MP4 through the ffmpeg binary that the optional package imageio-ffmpeg ships."""
-    try:
-        import imageio_ffmpeg
-    except ImportError:
-        raise MocapzError("writing .mp4 needs the optional package imageio-ffmpeg (pip install 'mocapz[video]'); "
-                          ".gif needs nothing more") from None
-    size: dict[str, Any] = {}
-
-    def write(tmp: Path) -> None:
-        frames = _frames(view, idx, width, height, scale)
-        first = next(frames)
-        size.update(width=first.width, height=first.height)
-        out = imageio_ffmpeg.write_frames(str(tmp), first.size, fps=fps, codec="libx264", quality=8,
-                                          macro_block_size=2, ffmpeg_log_level="error", output_params=["-f", "mp4"])
-        out.send(None)
-        try:
-            out.send(first.tobytes())
-            for im in frames:
-                out.send(im.tobytes())
-        finally:
-            out.close()
-
-    try:
-        atomic_write(path, write, force=force)
-    except (OSError, RuntimeError) as exc:
-        raise MocapzError(f"{path}: ffmpeg failed: {exc}") from None
-    return size
