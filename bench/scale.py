@@ -10,7 +10,7 @@ Two libraries are compressed, each with the lossless codec and one fast lossy co
    Gaussian noise on the moving channels rounded to the file's decimals), one file at a time; it is
    deleted at the end (unless ``--keep``).
 
-Every run is a fresh subprocess (``mocapz.parallel.batch.compress_folder``), so pool or cluster start-up is part
+Every run is a fresh subprocess (``mocapz.parallel.folder.compress_folder``), so pool or cluster start-up is part
 of the wall time, as for a user. Its peak memory is sampled (every 0.2 s) over the whole process tree
 (coordinator, forkserver or nanny processes, workers), and the outputs of each mode are hashed: the report
 says whether serial, --jobs 2 and Dask wrote identical bytes.
@@ -54,7 +54,7 @@ def _digest(folder: Path) -> str:
 
 def run_one(args: argparse.Namespace) -> None:
     """Child side: compress a folder in one mode and print a JSON line."""
-    from mocapz.parallel.batch import compress_folder
+    from mocapz.parallel.folder import compress_folder
 
     jobs = 1 if args.mode == "serial" else args.jobs
     scheduler = "local" if args.mode == "dask" else None
@@ -401,7 +401,7 @@ def main() -> None:
         print(f"wrote {args.out} from {args.from_json}")
         return
 
-    from mocapz.parallel.batch import discover
+    from mocapz.parallel.discover import discover
 
     cmu_dir = DATA / "cmu"
     cmu_files = discover(cmu_dir)

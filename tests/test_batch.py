@@ -15,7 +15,11 @@ from conftest import data_path
 import mocapz
 from mocapz.cli.batch import run_batch_compress
 from mocapz.errors import MocapzError, OptionError
-from mocapz.parallel.batch import Pool, WorkerCrashed, compress_folder, discover, load_many, plan
+from mocapz.parallel.discover import discover, plan
+from mocapz.parallel.folder import compress_folder
+from mocapz.parallel.load import load_many
+from mocapz.parallel.pool import Pool
+from mocapz.parallel.worker import WorkerCrashed
 
 SHORT_CLIPS = {  # a few short shared clips, copied into tmp_path (never into the repo)
     "cmu/bvh/09_06.bvh": "09_06.bvh",

@@ -1,4 +1,4 @@
-"""``mocapz compress DIR -o OUTDIR``: the command-line side of batch compression (see :mod:`mocapz.parallel.batch`).
+"""``mocapz compress DIR -o OUTDIR``: the command-line side of batch compression (see :mod:`mocapz.parallel.folder`).
 
 ``mocapz compress`` calls :func:`run_batch_compress` when its INPUT is a folder. Output: one line per
 failed clip on stderr (``mocapz: error: PATH: reason``), then a summary line on stdout (or one JSON object
@@ -15,7 +15,9 @@ from typing import Any
 import click
 
 from mocapz.errors import MocapzError
-from mocapz.parallel.batch import BATCH_EXTENSIONS, BatchReport, compress_folder, discover
+from mocapz.parallel.discover import BATCH_EXTENSIONS, discover
+from mocapz.parallel.folder import compress_folder
+from mocapz.parallel.report import BatchReport
 
 # Codec options naming files: made absolute, so workers whose working folder differs (Dask) find them.
 _PATH_OPTIONS = ("hierarchy", "weights")

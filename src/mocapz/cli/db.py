@@ -58,7 +58,8 @@ def compress_db(inputs: tuple[Path, ...], output: Path, force: bool, as_json: bo
     from mocapz.errors import MocapzError
     from mocapz.io.common import atomic_write
     from mocapz.library import compress_library
-    from mocapz.parallel.batch import discover, load_many
+    from mocapz.parallel.discover import discover
+    from mocapz.parallel.load import load_many
 
     if output.suffix.lower() != ".mczdb":
         raise OptionError(f"{output}: a library file must end in .mczdb")

@@ -1,0 +1,90 @@
+"""Compressing a whole folder of clips: :func:`compress_folder`, the entry point of ``mocapz compress DIR``.
+
+It ties the layers together: :func:`~mocapz.parallel.discover.plan` lists the clips and their outputs,
+a :class:`~mocapz.parallel.pool.Pool` runs :func:`~mocapz.parallel.clip.compress_clip` on each (serially,
+on local processes or on Dask), :class:`~mocapz.parallel.progress.BatchProgress` shows how it goes, and a
+:class:`~mocapz.parallel.report.BatchReport` sums up. The output bytes do not depend on the parallelism.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import functools
+import os
+import time
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+from mocapz.errors import MocapzError
+from mocapz.parallel.clip import ClipJob, ClipResult, clip_modules, compress_clip, failure_reason
+from mocapz.parallel.discover import plan
+from mocapz.parallel.pool import Pool
+from mocapz.parallel.progress import BatchProgress
+from mocapz.parallel.report import BatchReport
+
+
+def _largest_first(job: ClipJob) -> tuple[int, int]:
+    """Submission order: largest input first, then input order."""
+    try:
+        size = os.path.getsize(job.source)
+    except OSError:
+        size = 0
+    return -size, job.index
+
+
+def compress_folder(input_dir: str | os.PathLike[str], output_dir: str | os.PathLike[str], codec: str = "lossless",
+                    options: dict[str, Any] | None = None, *, jobs: int | None = None, scheduler: str | None = None,
+                    force: bool = False, progress: bool = False, pool: Pool | None = None,
+                    on_result: Callable[[ClipResult], None] | None = None) -> BatchReport:
+    """Compress every clip of ``input_dir`` into a ``.mcz`` under ``output_dir`` (layout mirrored).
+
+    Args:
+        codec, options: as for :func:`mocapz.compress`; the same for every clip.
+        jobs: worker processes (``None``: one per CPU; ``1``: serial, in this process).
+        scheduler: Dask scheduler address, or ``"local"`` for a LocalCluster on 127.0.0.1.
+        force: overwrite existing outputs (otherwise such clips fail with "output exists").
+        progress: show a progress bar on stderr (when it is a terminal).
+        pool: an already started :class:`Pool` to run on (then ``jobs`` and ``scheduler`` are ignored and
+            the pool is left open, e.g. to run several batches on one Dask cluster).
+        on_result: called in this process with each :class:`ClipResult` as it completes.
+
+    Returns:
+        A :class:`BatchReport`; failed clips are in ``report.failed``, nothing is raised for them. Raises
+        :class:`~mocapz.errors.MocapzError` only for problems with the whole batch (no such folder, unknown
+        codec, unreachable scheduler...). The bytes written do not depend on ``jobs`` or ``scheduler``.
+    """
+    from mocapz.codecs import get_codec
+
+    get_codec(codec)  # unknown codec: one error, not one per clip
+    out_root = Path(output_dir)
+    if out_root.exists() and not out_root.is_dir():
+        raise MocapzError(f"{out_root}: output exists and is not a folder")
+    jobs_list = plan(input_dir, out_root)
+    out_root.mkdir(parents=True, exist_ok=True)
+    worker = functools.partial(compress_clip, codec=codec, options=dict(options or {}), force=force)
+    results: list[ClipResult | None] = [None] * len(jobs_list)
+    t0 = time.perf_counter()
+    own = pool is None
+    run_on = Pool(jobs, scheduler, max_items=len(jobs_list), preload=clip_modules(codec)) if pool is None else pool
+    with run_on if own else contextlib.nullcontext(run_on) as active, \
+            BatchProgress(len(jobs_list), f"{codec}, {active.short_description}", enabled=progress) as bar:
+        t_ready = time.perf_counter()
+        # Largest inputs first, so no long clip is left running alone at the end; results are stored by
+        # index, so the order of submission changes nothing in the outputs or the report.
+        submit = jobs_list if active.mode == "serial" else sorted(jobs_list, key=_largest_first)
+        for outcome in active.imap(worker, submit):
+            job: ClipJob = outcome.item
+            if outcome.error is not None:
+                res = ClipResult(job.index, job.name, None, error=failure_reason(outcome.error, job.source),
+                                 error_type=type(outcome.error).__name__)
+            else:
+                res = outcome.value
+            results[job.index] = res
+            bar.update(res)
+            if on_result is not None:
+                on_result(res)
+        t_done = time.perf_counter()
+    seconds = time.perf_counter() - t0
+    return BatchReport([r for r in results if r is not None], seconds, active.startup_seconds if own else 0.0,
+                       active.mode, active.workers, active.description, codec, work_seconds=t_done - t_ready)
