@@ -310,7 +310,7 @@ def _import_modules(modules: Sequence[str]) -> None:
 
 def clip_modules(codec: str) -> list[str]:
     """Modules a :func:`compress_clip` worker needs: readers, container and the codec's encoder."""
-    mods = ["numpy", "mocapz.api", "mocapz.io", "mocapz.io.bvh", "mocapz.io.asfamc", "mocapz.io.c3d",
+    mods = ["numpy", "mocapz.api", "mocapz.io", "mocapz.io.bvh", "mocapz.io.amc", "mocapz.io.c3d",
             "mocapz.io.trc", "mocapz.parallel.batch"]
     with contextlib.suppress(Exception):
         from mocapz.codecs import get_codec
