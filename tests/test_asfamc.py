@@ -11,8 +11,10 @@ from conftest import data_path
 from scipy.spatial.transform import Rotation
 
 from mocapz.errors import FormatError, MocapzError
-from mocapz.io import asfamc
-from mocapz.io.asfamc import find_asf, generate_asf, read_asfamc, write_asfamc
+from mocapz.io import amc as amc_io
+from mocapz.io.amc import read_asfamc, write_asfamc
+from mocapz.io.asf import find_asf
+from mocapz.io.asf_write import generate_asf
 from mocapz.io.bvh import read_bvh
 from mocapz.io.common import CMU_UNIT_CM
 from mocapz.model.kinematics import forward_kinematics
@@ -363,7 +365,7 @@ def test_failed_write_leaves_nothing(tmp_path: Path, cmu_0101: Motion, monkeypat
         write_asfamc(bad, tmp_path / "bad.amc")
     assert list(tmp_path.iterdir()) == []
 
-    real = asfamc.atomic_write
+    real = amc_io.atomic_write
 
     def failing(path, write, force=False):  # type: ignore[no-untyped-def]
         if Path(path).suffix == ".amc":
@@ -373,7 +375,7 @@ def test_failed_write_leaves_nothing(tmp_path: Path, cmu_0101: Motion, monkeypat
             return real(path, boom, force)
         return real(path, write, force)
 
-    monkeypatch.setattr(asfamc, "atomic_write", failing)
+    monkeypatch.setattr(amc_io, "atomic_write", failing)
     with pytest.raises(OSError, match="disk full"):
         write_asfamc(cmu_0101.slice(0, 5), tmp_path / "f.amc")
     assert list(tmp_path.iterdir()) == []

@@ -52,7 +52,7 @@ UNREAD_SAMPLES = {  # readable files mocapz does not read yet (issue 10): strict
     "FP1.C3D": "refused by mocapz's own pre-checks although ezc3d reads it",
 }
 CMU_BVH = sorted(str(p.relative_to(DATA)) for p in DATA.glob("cmu/bvh/*.bvh"))
-READER = {".bvh": "mocapz.io.bvh", ".amc": "mocapz.io.asfamc", ".c3d": "mocapz.io.c3d", ".trc": "mocapz.io.trc"}
+READER = {".bvh": "mocapz.io.bvh", ".amc": "mocapz.io.amc", ".c3d": "mocapz.io.c3d", ".trc": "mocapz.io.trc"}
 MIN_CMU_RATIO = 3.1  # measured 3.17 (goal 3.5): guards against regressions
 
 

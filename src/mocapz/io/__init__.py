@@ -1,6 +1,14 @@
 """File formats: read any supported file into a Motion / MarkerMotion, write one back.
 
-The format is chosen from the file extension. Readers never know codecs.
+The format is chosen from the file extension; its module is imported on first use. Readers never know
+codecs. One module per job:
+
+* :mod:`~mocapz.io.bvh`: BVH files;
+* :mod:`~mocapz.io.amc`: AMC motion files (with their skeleton), :mod:`~mocapz.io.asf` parses the ASF
+  skeleton, :mod:`~mocapz.io.asf_write` produces the ASF written beside an AMC;
+* :mod:`~mocapz.io.c3d`: C3D files through ezc3d, :mod:`~mocapz.io.c3d_checks` checks the raw file first;
+* :mod:`~mocapz.io.trc`: TRC data rows, :mod:`~mocapz.io.trc_header` the TRC header lines;
+* :mod:`~mocapz.io.common`: helpers every format shares (decimals, text, atomic output, units).
 """
 
 from __future__ import annotations
@@ -32,7 +40,7 @@ def load(path: str | os.PathLike[str], asf: str | os.PathLike[str] | None = None
 
         return read_bvh(p)
     if ext == ".amc":
-        from mocapz.io.asfamc import read_asfamc
+        from mocapz.io.amc import read_asfamc
 
         return read_asfamc(p, asf)
     if ext == ".asf":
@@ -65,7 +73,7 @@ def save(motion: AnyMotion, path: str | os.PathLike[str], force: bool = False) -
             write_bvh(motion, p, force=force)
             return [p]
         if ext == ".amc":
-            from mocapz.io.asfamc import write_asfamc
+            from mocapz.io.amc import write_asfamc
 
             return write_asfamc(motion, p, force=force)
         raise MocapzError(f"{p}: skeletal motion can be written as .bvh or .amc, not {ext}")

@@ -19,6 +19,7 @@ from mocapz.io.common import (
     format_rows,
     guess_unit_cm,
     read_text,
+    rest_height,
     snap_rate,
 )
 from mocapz.model.motion import Motion
@@ -246,17 +247,6 @@ def _set_units(skeleton: Skeleton) -> None:
         skeleton.unit_cm, skeleton.unit_note = CMU_UNIT_CM, "CMU skeleton: 1 unit = 2.54/0.45 cm"
         return
     skeleton.unit_cm, skeleton.unit_note = guess_unit_cm(rest_height(skeleton))
-
-
-def rest_height(skeleton: Skeleton) -> float:
-    """Extent of the rest pose (all rotations zero) along its largest axis, in file units."""
-    from mocapz.model.kinematics import chain
-
-    n = skeleton.n_joints
-    rot = np.broadcast_to(np.eye(3), (1, n, 3, 3)).copy()
-    pos, _ = chain(skeleton, rot, skeleton.offsets[None].copy())
-    ext = pos[0].max(axis=0) - pos[0].min(axis=0)
-    return float(ext.max())
 
 
 def write_bvh(motion: Motion, path: str | os.PathLike[str], force: bool = False) -> None:

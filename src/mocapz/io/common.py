@@ -1,4 +1,4 @@
-"""Helpers shared by the format readers and writers: decimal detection, safe output, unit guesses."""
+"""Helpers shared by the format readers and writers: decimal detection, text in and out, safe output, unit guesses."""
 
 from __future__ import annotations
 
@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from mocapz.errors import FormatError, MocapzError
+from mocapz.model.skeleton import Skeleton
 
 CMU_UNIT_CM = 2.54 / 0.45  # CMU ASF "length 0.45": 1 unit = 1/0.45 inch = 5.644 cm
 
@@ -55,6 +56,15 @@ def guess_unit_cm(height: float) -> tuple[float | None, str]:
         if lo <= height <= hi:
             return cm, f"guessed from skeleton height {height:.3g}: {name}"
     return None, f"unknown (skeleton height {height:.3g} in file units)"
+
+
+def rest_height(skeleton: Skeleton) -> float:
+    """Largest extent of the rest pose (all channels zero, offsets only) along any axis, in file units."""
+    from mocapz.model.kinematics import chain
+
+    rot = np.broadcast_to(np.eye(3), (1, skeleton.n_joints, 3, 3)).copy()
+    pos, _ = chain(skeleton, rot, skeleton.offsets[None].copy())
+    return float(np.ptp(pos[0], axis=0).max())
 
 
 def atomic_write(path: str | os.PathLike[str], write: Callable[[Path], None], force: bool = False) -> None:

@@ -15,6 +15,9 @@ beyond the named ones (written by some exporters) are kept as markers named ``*<
 dropped. The reader is strict where the file contradicts itself: NumFrames must equal the number of
 data rows, NumMarkers must lie between the number of names and the number of marker columns, every
 field must be a number, and a sample must have all of X, Y, Z or none.
+
+The five header lines are parsed and written by :mod:`mocapz.io.trc_header`; this module reads and writes
+the data rows: positions ``(frames, markers, 3)`` in the header's ``Units``, NaN for a missing sample.
 """
 
 from __future__ import annotations
@@ -22,7 +25,6 @@ from __future__ import annotations
 import math
 import os
 import re
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -30,30 +32,10 @@ import numpy as np
 
 from mocapz.errors import FormatError
 from mocapz.io.common import atomic_write, detect_decimals, read_text
+from mocapz.io.trc_header import HEADER_LINES, TRCHeader, first_frame, header_text, orig_start_frame, parse_header
 from mocapz.model.motion import MarkerMotion
 
-HEADER_LINES = 5
-STANDARD_KEYS = ("DataRate", "CameraRate", "NumFrames", "NumMarkers", "Units", "OrigDataRate",
-                 "OrigDataStartFrame", "OrigNumFrames")
 _SPACED_TAB = re.compile(r" *\t *")
-
-
-@dataclass
-class TRCHeader:
-    """The five header lines of a TRC file.
-
-    ``names`` has one entry per named marker slot (``""`` for a slot left empty), ``data_start`` is the
-    0-based index of the first line after the header (and after a blank separator line, if any).
-    """
-
-    path_fields: list[str]
-    fields: dict[str, str]
-    rate: float
-    n_frames: int
-    n_markers: int
-    units: str
-    names: list[str]
-    data_start: int
 
 
 # ----------------------------------------------------------------------------------------------- reading
@@ -89,87 +71,6 @@ def read_trc(path: str | os.PathLike[str]) -> MarkerMotion:
         decimals=_decimals(positions),
         metadata=_metadata(path, text, lines, head, frames, times, unnamed),
     )
-
-
-def parse_header(lines: list[str], path: Path) -> TRCHeader:
-    """Parse the five header lines (1-based line numbers in errors)."""
-    if not lines or not lines[0].lstrip("\ufeff").startswith("PathFileType"):
-        raise FormatError(path, "not a TRC file (the first line does not start with PathFileType)", 1)
-    if len(lines) < HEADER_LINES:
-        raise FormatError(path, f"truncated header: a TRC header has {HEADER_LINES} lines, "
-                                f"found {len(lines)}", len(lines))
-    fields = _header_fields(lines, path)
-    _check_coordinate_row(lines[4], path)
-    data_start = HEADER_LINES
-    while data_start < len(lines) and not lines[data_start].strip():
-        data_start += 1
-    return TRCHeader(
-        path_fields=[f.strip() for f in lines[0].split("\t")[1:] if f.strip()],
-        fields=fields,
-        rate=_header_number(fields, "DataRate", path, positive=True),
-        n_frames=int(_header_number(fields, "NumFrames", path, integer=True)),
-        n_markers=int(_header_number(fields, "NumMarkers", path, integer=True)),
-        units=fields.get("Units", "") or "mm",
-        names=_marker_names(lines[3], path),
-        data_start=data_start,
-    )
-
-
-def _header_fields(lines: list[str], path: Path) -> dict[str, str]:
-    keys = _trim_fields(lines[1].split("\t"))
-    values = _trim_fields(lines[2].split("\t"))
-    if len(keys) != len(values):
-        raise FormatError(path, f"header has {len(keys)} keywords (line 2) but {len(values)} values", 3)
-    fields = dict(zip(keys, values, strict=True))
-    for key in ("DataRate", "NumFrames", "NumMarkers"):
-        if key not in fields:
-            raise FormatError(path, f"header keyword {key} missing", 2)
-    return fields
-
-
-def _trim_fields(fields: list[str]) -> list[str]:
-    out = [f.strip() for f in fields]
-    while out and not out[-1]:
-        out.pop()
-    return out
-
-
-def _header_number(fields: dict[str, str], key: str, path: Path, positive: bool = False,
-                   integer: bool = False) -> float:
-    text = fields[key]
-    try:
-        value = float(text)
-    except ValueError:
-        raise FormatError(path, f"header {key} is not a number: {text!r}", 3) from None
-    if not math.isfinite(value) or value < 0 or (positive and value == 0):
-        raise FormatError(path, f"header {key} must be {'positive' if positive else 'non-negative'}, "
-                                f"got {text!r}", 3)
-    if integer and value != int(value):
-        raise FormatError(path, f"header {key} must be a whole number, got {text!r}", 3)
-    return value
-
-
-def _marker_names(line: str, path: Path) -> list[str]:
-    """Names of the marker slots of the name row (``""`` for an empty slot), trailing empties cut.
-
-    A name normally sits on every third field (``name<tab><tab><tab>``); a row that is not aligned so
-    is read as the plain list of its non-empty fields.
-    """
-    fields = [f.strip() for f in line.split("\t")]
-    if not fields[0].lower().startswith("frame"):
-        raise FormatError(path, f"expected the marker name row 'Frame#<tab>Time<tab>...', "
-                                f"found {line.strip()[:40]!r}", 4)
-    slots = fields[2:]
-    if any(f for i, f in enumerate(slots) if i % 3):
-        return [f for f in slots if f]
-    return _trim_fields(slots[::3])
-
-
-def _check_coordinate_row(line: str, path: Path) -> None:
-    tokens = line.split()
-    if tokens and not tokens[0].upper().startswith("X"):
-        raise FormatError(path, f"expected the coordinate row 'X1<tab>Y1<tab>Z1...', "
-                                f"found {line.strip()[:40]!r}", 5)
 
 
 def _data_rows(lines: list[str], start: int) -> tuple[list[str], np.ndarray]:
@@ -321,7 +222,7 @@ def _metadata(path: Path, text: str, lines: list[str], head: TRCHeader, frames: 
     meta: dict[str, Any] = {
         "path": str(path),
         "file_bytes": path.stat().st_size,
-        "first_frame": int(frames[0]) if frames.size else _orig_start(head),
+        "first_frame": int(frames[0]) if frames.size else orig_start_frame(head),
         "trc_frame_numbers": frames,
         "trc_times": times,
         "trc_time_decimals": _time_decimals(times, first_row),
@@ -349,13 +250,6 @@ def _time_decimals(times: np.ndarray, first_row: str) -> int | None:
     return max(int(dec[0]), len(shown) if shown.isdigit() else 0)
 
 
-def _orig_start(head: TRCHeader) -> int:
-    try:
-        return int(float(head.fields.get("OrigDataStartFrame", "1")))
-    except ValueError:
-        return 1
-
-
 # ----------------------------------------------------------------------------------------------- writing
 
 
@@ -369,7 +263,7 @@ def write_trc(motion: MarkerMotion, path: str | os.PathLike[str], force: bool = 
     """
     path = Path(path)
     _check_writable(motion, path)
-    text = _header_text(motion, path) + _data_text(motion)
+    text = header_text(motion, path) + _data_text(motion)
     newline = motion.metadata.get("trc_newline", "\n")
     if newline == "\r\n":
         text = text.replace("\n", "\r\n")
@@ -383,62 +277,6 @@ def _check_writable(motion: MarkerMotion, path: Path) -> None:
     for label in [*motion.labels, motion.units]:
         if any(c in str(label) for c in "\t\r\n"):
             raise FormatError(path, f"a TRC label or unit cannot hold tabs or line breaks: {label!r}")
-
-
-def _header_text(motion: MarkerMotion, path: Path) -> str:
-    meta = motion.metadata
-    path_fields = meta.get("trc_path_fields") or ["4", "(X/Y/Z)", path.name]
-    fields = _header_values(motion)
-    m = motion.n_markers
-    lines = [
-        "\t".join(["PathFileType", *map(str, path_fields)]),
-        "\t".join(fields),
-        "\t".join(fields.values()),
-        "Frame#\tTime\t" + "".join(f"{label}\t\t\t" for label in motion.labels),
-        "\t\t" + "".join(f"X{i}\tY{i}\tZ{i}\t" for i in range(1, m + 1)),
-    ]
-    if meta.get("trc_blank_line", True):
-        lines.append("")
-    return "\n".join(lines) + "\n"
-
-
-def _header_values(motion: MarkerMotion) -> dict[str, str]:
-    """Header keyword -> value text: the source's fields, updated to describe ``motion``."""
-    raw = motion.metadata.get("trc_header")
-    raw = {str(k): str(v) for k, v in raw.items()} if isinstance(raw, dict) else {}
-    rate = _same_number(raw.get("DataRate"), motion.frame_rate) or _format_rate(motion.frame_rate)
-    fresh = {
-        "DataRate": rate,
-        "CameraRate": raw.get("CameraRate", rate),
-        "NumFrames": _same_number(raw.get("NumFrames"), motion.n_frames) or str(motion.n_frames),
-        "NumMarkers": _same_number(raw.get("NumMarkers"), motion.n_markers) or str(motion.n_markers),
-        "Units": motion.units,
-        "OrigDataRate": raw.get("OrigDataRate", rate),
-        "OrigDataStartFrame": raw.get("OrigDataStartFrame", str(_first_frame(motion))),
-        "OrigNumFrames": raw.get("OrigNumFrames", str(motion.n_frames)),
-    }
-    out = {key: raw[key] for key in raw}
-    out.update(fresh)
-    return {key: out[key] for key in [*raw, *(k for k in STANDARD_KEYS if k not in raw)]}
-
-
-def _same_number(text: str | None, value: float) -> str | None:
-    """``text`` if it already spells ``value`` (keeps the source's padding and decimals)."""
-    try:
-        return text if text is not None and float(text) == value else None
-    except ValueError:
-        return None
-
-
-def _format_rate(rate: float) -> str:
-    return f"{rate:.2f}" if round(rate, 2) == rate else repr(float(rate))
-
-
-def _first_frame(motion: MarkerMotion) -> int:
-    try:
-        return int(motion.metadata.get("first_frame", 1))
-    except (TypeError, ValueError):
-        return 1
 
 
 def _data_text(motion: MarkerMotion) -> str:
@@ -463,7 +301,7 @@ def _frame_column(motion: MarkerMotion) -> tuple[np.ndarray, str]:
     frames = motion.metadata.get("trc_frame_numbers")
     if not (isinstance(frames, np.ndarray) and frames.shape == (motion.n_frames,)
             and np.isfinite(frames).all()):
-        frames = _first_frame(motion) + np.arange(motion.n_frames)
+        frames = first_frame(motion) + np.arange(motion.n_frames)
     frames = np.asarray(frames, dtype=np.float64)
     return frames, "%d" if np.array_equal(frames, np.round(frames)) else "%r"
 

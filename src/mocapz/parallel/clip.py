@@ -128,7 +128,7 @@ def load_motion(path: str | os.PathLike[str]) -> AnyMotion:
 def clip_modules(codec: str) -> list[str]:
     """Modules a :func:`compress_clip` or :func:`load_motion` worker needs: readers, container, the codec's
     encoder, and the worker side of the pools (:mod:`mocapz.parallel.worker`, this module)."""
-    mods = ["numpy", "mocapz.api", "mocapz.io", "mocapz.io.bvh", "mocapz.io.asfamc", "mocapz.io.c3d",
+    mods = ["numpy", "mocapz.api", "mocapz.io", "mocapz.io.bvh", "mocapz.io.asf", "mocapz.io.amc", "mocapz.io.c3d",
             "mocapz.io.trc", "mocapz.parallel.worker", "mocapz.parallel.clip"]
     with contextlib.suppress(Exception):
         from mocapz.codecs import get_codec
