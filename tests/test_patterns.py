@@ -265,7 +265,7 @@ def test_zero_markers_and_bad_options(c3d_short: MarkerMotion) -> None:
     empty = MarkerMotion(labels=[], positions=np.zeros((10, 0, 3)), frame_rate=120.0, name="empty")
     with pytest.raises(FormatError, match="no markers"):
         compress(empty, codec="patterns")
-    with pytest.raises(OptionError, match="unknown option"):
+    with pytest.raises(OptionError, match="has no option quality"):
         compress(c3d_short, codec="patterns", quality=3)
     with pytest.raises(OptionError, match="bits"):
         compress(c3d_short, codec="patterns", bits=0)

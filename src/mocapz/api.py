@@ -1,7 +1,9 @@
-"""The small public API: ``compress(motion, **options) -> bytes`` and ``decompress(bytes) -> motion``."""
+"""The small public API: ``compress(motion or path, codec, **options) -> bytes`` and
+``decompress(bytes) -> motion``. Options are checked here, once, against the codec's declarations."""
 
 from __future__ import annotations
 
+from os import PathLike
 from pathlib import Path
 from typing import Any
 
@@ -10,22 +12,31 @@ from mocapz.errors import FormatError, OptionError
 from mocapz.format.container import Container
 from mocapz.format.layout import decode_header, encode_layout
 from mocapz.model.header import ClipHeader
-from mocapz.model.motion import AnyMotion, Motion
+from mocapz.model.motion import AnyMotion, MarkerMotion, Motion
 
 
-def compress(motion: AnyMotion, codec: str = "lossless", **options: Any) -> bytes:
+def compress(motion: AnyMotion | str | PathLike[str], codec: str = "lossless", **options: Any) -> bytes:
     """Compress a motion into the bytes of a ``.mcz`` file.
 
     Args:
-        motion: a :class:`~mocapz.Motion` or :class:`~mocapz.MarkerMotion`.
-        codec: ``"lossless"``, ``"pga"`` (skeletal) or ``"patterns"``.
-        **options: codec options (see ``mocapz compress --help``).
+        motion: a :class:`~mocapz.Motion` or :class:`~mocapz.MarkerMotion`, or the path of a motion file.
+        codec: a registered codec name, any case (``mocapz.codecs.codec_names()``).
+        **options: that codec's options (``docs/options.md``; ``mocapz compress --codec NAME --help``).
+
+    Raises:
+        OptionError: an unknown codec or option, or a bad value (checked before anything is read).
+        TargetError: a target the codec cannot meet on this clip.
     """
     info = get_codec(codec)
-    kind = "skeleton" if isinstance(motion, Motion) else "markers"
-    if kind not in info.kinds:
-        raise OptionError(f"codec {codec!r} does not handle {kind} data")
-    sections = info.encode(motion, **options)
+    checked = info.validate(options)
+    if not isinstance(motion, Motion | MarkerMotion):
+        from mocapz.io import load
+
+        motion = load(Path(motion))
+    if motion.kind not in info.kinds:
+        raise OptionError(f"the {info.name} codec does not take {motion.kind} data "
+                          f"(it takes {' and '.join(info.kinds)} data)")
+    sections = info.encode(motion, **checked)
     return Container(info.name, info.version, encode_layout(motion), sections).to_bytes()
 
 
@@ -53,5 +64,7 @@ def decompress(data: bytes, path: str | Path | None = None) -> AnyMotion:
         return info.decode(box.sections, header)
     except FormatError as exc:
         raise FormatError(path, exc.problem) from None
-    except (ValueError, IndexError, KeyError, TypeError) as exc:
-        raise FormatError(path, f"corrupted {box.codec} payload ({type(exc).__name__}: {exc})") from None
+    except (ValueError, IndexError, KeyError, TypeError, OverflowError) as exc:
+        # the checksum held, so this is damaged content written with a valid CRC, or a decoder bug
+        raise FormatError(path, f"the {box.codec} decoder failed ({type(exc).__name__}: {exc}): the file's "
+                                f"content is damaged, or this is a mocapz bug (please report it)") from None

@@ -46,6 +46,7 @@ from mocapz.codecs.patterns.prepare import Prepared, marker_addh, prepare
 from mocapz.codecs.patterns.quantise import decode_patterns
 from mocapz.codecs.patterns.rate import search
 from mocapz.codecs.patterns.skeletal import skeleton_addh
+from mocapz.codecs.target import ErrorMetric
 from mocapz.errors import FormatError, MocapzError, OptionError
 from mocapz.format.container import read_sections, seal, write_sections
 from mocapz.format.entropy import pack_uint64, read_uvarint, safe_zstd_decompress, unpack_uint64, write_uvarint
@@ -154,7 +155,8 @@ def compress_library(motions: list[AnyMotion], **options: Any) -> bytes:
 
     def check(lib: Library) -> float:
         data = lib.to_bytes()
-        return max(t.score(m, read_clip(data, n)) for t, m, n in zip(targets, motions, names, strict=True))
+        return max(t.score(ErrorMetric(m).of_motion(read_clip(data, n)))
+                   for t, m, n in zip(targets, motions, names, strict=True))
 
     addh = float(np.mean([p.addh for _, p in preps]))
     lib = search("library", motions, settings, targets[0], fixed, addh, run, check)

@@ -1,16 +1,22 @@
 """Codec registry. A codec turns a motion into named byte sections and back.
 
-Each codec is a subpackage with an ``encode`` module and a ``decode`` module; it is registered here by
-name. The container stores the codec name and version, so a file says which decoder it needs.
+Each codec is a subpackage (or a module) with an encoder and a decoder side by side, described by a
+:class:`CodecInfo` and registered here by name; names are case-insensitive. The container stores the codec
+name and version, so a file says which decoder it needs. A codec never parses files or reads the container:
+its encoder gets a motion and checked options (:mod:`mocapz.codecs.options`), its decoder the sections and
+a typed :class:`~mocapz.model.header.ClipHeader`.
 """
 
 from __future__ import annotations
 
+import importlib
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
+from mocapz.codecs.options import Option, validate
 from mocapz.errors import OptionError
+from mocapz.model.header import ClipHeader
 from mocapz.model.motion import AnyMotion
 
 
@@ -22,60 +28,63 @@ class CodecInfo:
         name: the ``--codec`` name.
         version: bumped whenever the byte format of its sections changes.
         kinds: ``"skeleton"`` and/or ``"markers"``: the data it accepts.
-        encode: ``encode(motion, **options) -> dict[str, bytes]``.
-        decode: ``decode(sections, layout) -> motion`` (``layout`` is the container's layout dict).
-        options: option name -> short description, for ``--help`` and validation.
+        encode: ``encode(motion, **options) -> dict[str, bytes]``, options checked by :meth:`validate`.
+        decode: ``decode(sections, header) -> motion``.
+        options: the option declarations (the common targets first in every lossy codec).
+        summary: one line on what the codec is for (help, docs).
+        lossy: False only for codecs that give the values back exactly.
     """
 
     name: str
     version: int
     kinds: tuple[str, ...]
     encode: Callable[..., dict[str, bytes]]
-    decode: Callable[[dict[str, bytes], dict[str, Any]], AnyMotion]
-    options: dict[str, str]
+    decode: Callable[[dict[str, bytes], ClipHeader], AnyMotion]
+    options: tuple[Option, ...]
+    summary: str = ""
+    lossy: bool = True
+
+    def validate(self, options: dict[str, Any]) -> dict[str, Any]:
+        """Checked options (raises OptionError naming the option and what it accepts)."""
+        return validate(self.name, self.options, options)
+
+    def option(self, name: str) -> Option:
+        return next(o for o in self.options if o.name == name)
 
 
 _REGISTRY: dict[str, Callable[[], CodecInfo]] = {}
 
 
 def register(name: str, loader: Callable[[], CodecInfo]) -> None:
-    _REGISTRY[name] = loader
+    _REGISTRY[name.lower()] = loader
 
 
 def get_codec(name: str) -> CodecInfo:
-    if name not in _REGISTRY:
+    """The codec registered as ``name`` (any case)."""
+    key = str(name).strip().lower()
+    if key not in _REGISTRY:
         raise OptionError(f"unknown codec {name!r} (available: {', '.join(sorted(_REGISTRY))})")
-    return _REGISTRY[name]()
+    return _REGISTRY[key]()
 
 
 def codec_names() -> list[str]:
     return sorted(_REGISTRY)
 
 
-def _lossless() -> CodecInfo:
-    from mocapz.codecs.lossless import INFO
-
-    return INFO
-
-
-register("lossless", _lossless)
+def all_codecs() -> list[CodecInfo]:
+    """Every registered codec, in registration order (lossless, pga, patterns, then the baselines)."""
+    return [loader() for loader in _REGISTRY.values()]
 
 
-def _pga() -> CodecInfo:
-    from mocapz.codecs.pga import INFO
+def _loader(module: str) -> Callable[[], CodecInfo]:
+    def load() -> CodecInfo:
+        return importlib.import_module(module).INFO  # type: ignore[no-any-return]
 
-    return INFO
-
-
-def _patterns() -> CodecInfo:
-    from mocapz.codecs.patterns import INFO
-
-    return INFO
+    return load
 
 
-register("pga", _pga)
-register("patterns", _patterns)
-register("subsample", lambda: __import__("mocapz.codecs.baselines.subsample", fromlist=["INFO"]).INFO)
-register("pca", lambda: __import__("mocapz.codecs.baselines.pca", fromlist=["INFO"]).INFO)
-register("segpca", lambda: __import__("mocapz.codecs.baselines.segpca", fromlist=["INFO"]).INFO)
-register("quant", lambda: __import__("mocapz.codecs.baselines.quant", fromlist=["INFO"]).INFO)
+for _name, _module in (("lossless", "mocapz.codecs.lossless"), ("pga", "mocapz.codecs.pga"),
+                       ("patterns", "mocapz.codecs.patterns"), ("subsample", "mocapz.codecs.baselines.subsample"),
+                       ("pca", "mocapz.codecs.baselines.pca"), ("segpca", "mocapz.codecs.baselines.segpca"),
+                       ("quant", "mocapz.codecs.baselines.quant")):
+    register(_name, _loader(_module))

@@ -73,6 +73,26 @@ class Motion:
     def slice(self, start: int, stop: int | None = None) -> Motion:
         return replace(self, channels=self.channels[start:stop].copy())
 
+    # ------------------------------------------------- what Motion and MarkerMotion share
+    @property
+    def kind(self) -> str:
+        """``"skeleton"``."""
+        return "skeleton"
+
+    @property
+    def unit_cm(self) -> float | None:
+        """Centimetres per file length unit (the skeleton's), or ``None`` if unknown."""
+        return self.skeleton.unit_cm
+
+    @property
+    def values(self) -> np.ndarray:
+        """The sample values: ``(frames, channels)``."""
+        return self.channels
+
+    def with_values(self, values: np.ndarray) -> Motion:
+        """Same clip with other values (decimals unknown)."""
+        return self.with_channels(values)
+
 
 @dataclass
 class MarkerMotion:
@@ -133,6 +153,23 @@ class MarkerMotion:
 
     def with_positions(self, positions: np.ndarray) -> MarkerMotion:
         return replace(self, positions=np.asarray(positions, dtype=np.float64), decimals=None)
+
+    @property
+    def kind(self) -> str:
+        """``"markers"``."""
+        return "markers"
+
+    @property
+    def values(self) -> np.ndarray:
+        """The sample values: ``(frames, markers, 3)``, NaN where missing."""
+        return self.positions
+
+    def with_values(self, values: np.ndarray) -> MarkerMotion:
+        """Same clip with other values (decimals unknown)."""
+        return self.with_positions(values)
+
+    def slice(self, start: int, stop: int | None = None) -> MarkerMotion:
+        return replace(self, positions=self.positions[start:stop].copy())
 
 
 UNIT_CM = {"mm": 0.1, "cm": 1.0, "m": 100.0, "dm": 10.0, "in": 2.54, "inch": 2.54}

@@ -15,11 +15,10 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 
-from mocapz.errors import FormatError, OptionError
+from mocapz.errors import FormatError
 from mocapz.format.entropy import pack_uint64, read_uvarint, unpack_uint64, write_uvarint
 from mocapz.model.header import ClipHeader
 from mocapz.model.motion import AnyMotion, Motion
@@ -152,39 +151,3 @@ def read_uvarints(data: bytes, count: int) -> tuple[list[int], int]:
         v, pos = read_uvarint(data, pos)
         out.append(v)
     return out, pos
-
-
-# ---------------------------------------------------------------- options
-def check_options(codec: str, options: dict[str, Any], known: dict[str, str]) -> None:
-    unknown = sorted(set(options) - set(known))
-    if unknown:
-        raise OptionError(f"unknown option(s) for the {codec} codec: {', '.join(unknown)} "
-                          f"(known: {', '.join(known)})")
-
-
-def int_option(options: dict[str, Any], name: str, default: int, lo: int, hi: int) -> int:
-    v = options.get(name)
-    if v is None:
-        return default
-    try:
-        f = float(v)
-    except (TypeError, ValueError):
-        raise OptionError(f"{name}: expected an integer, got {v!r}") from None
-    if not math.isfinite(f) or f != int(f) or not lo <= f <= hi:
-        raise OptionError(f"{name}: must be an integer between {lo} and {hi}, got {v!r}")
-    return int(f)
-
-
-def float_option(options: dict[str, Any], name: str, default: float, lo: float, hi: float,
-                 lo_open: bool = False) -> float:
-    v = options.get(name)
-    if v is None:
-        return default
-    try:
-        f = float(v)
-    except (TypeError, ValueError):
-        raise OptionError(f"{name}: expected a number, got {v!r}") from None
-    if not math.isfinite(f) or not (lo < f if lo_open else lo <= f) or f > hi:
-        bound = f"greater than {lo:g}" if lo_open else f"at least {lo:g}"
-        raise OptionError(f"{name}: must be {bound} and at most {hi:g}, got {v!r}")
-    return f

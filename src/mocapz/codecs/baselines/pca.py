@@ -19,29 +19,31 @@ import numpy as np
 
 from mocapz.codecs import CodecInfo
 from mocapz.codecs.baselines.common import (
-    check_options,
     f32_array,
     f32_bytes,
     finish,
-    float_option,
     gaps_bytes,
     gaps_from,
-    int_option,
     layout_columns,
     read_uvarints,
     uvarints,
     values_of,
 )
+from mocapz.codecs.options import Option
+from mocapz.codecs.ratesearch import check_target, coarsest_meeting
+from mocapz.codecs.target import TARGET_OPTIONS, Target
 from mocapz.errors import FormatError
 from mocapz.model.header import ClipHeader
 from mocapz.model.motion import AnyMotion, Motion
 
 VERSION = 1
-OPTIONS = {
-    "variance": "fraction of the variance kept, 0 < v <= 1 (default 0.95)",
-    "components": "number of principal components K (overrides variance)",
-}
 DEFAULT_VARIANCE = 0.95
+OPTIONS: tuple[Option, ...] = TARGET_OPTIONS + (
+    Option("variance", "float", "fraction of the variance kept", low=0.0, high=1.0, low_open=True,
+           default=DEFAULT_VARIANCE),
+    Option("components", "int", "number of principal components K (overrides variance)", low=1, high=1_000_000,
+           default_text="from --variance; searched with a target"),
+)
 
 
 def column_scale(header: ClipHeader) -> np.ndarray:
@@ -101,10 +103,19 @@ def scale_of(motion: AnyMotion) -> np.ndarray:
 
 def encode(motion: AnyMotion, **options: Any) -> dict[str, bytes]:
     """Sections: ``head`` (K), ``mean``, ``basis``, ``coef`` (float32), ``gaps`` (markers with gaps)."""
-    check_options("pca", options, OPTIONS)
-    variance = float_option(options, "variance", DEFAULT_VARIANCE, 0.0, 1.0, lo_open=True)
-    comps = options.get("components")
-    k = None if comps is None else int_option(options, "components", 1, 1, 1_000_000)
+    target = Target.from_options(options, motion.unit_cm)
+    variance, k = options["variance"], options.get("components")
+    if not target.active:
+        return encode_components(motion, variance, k)
+    if k is not None:
+        return check_target(motion, target, encode_components(motion, variance, k), decode, "pca")
+    cols = max(1, motion.values[:1].size)
+    return coarsest_meeting(motion, target, range(cols, 0, -1), lambda c: encode_components(motion, 1.0, c),
+                            decode, "pca")
+
+
+def encode_components(motion: AnyMotion, variance: float, k: int | None) -> dict[str, bytes]:
+    """Sections of a PCA keeping ``k`` components (None: those explaining ``variance``)."""
     v = values_of(motion)
     scale = scale_of(motion)
     mean, basis, coef = fit(v.x * scale, variance, k)
@@ -131,4 +142,4 @@ def decode(sections: dict[str, bytes], header: ClipHeader) -> AnyMotion:
 
 
 INFO = CodecInfo(name="pca", version=VERSION, kinds=("skeleton", "markers"), encode=encode, decode=decode,
-                 options=OPTIONS)
+                 options=OPTIONS, summary="baseline: one PCA of the whole clip (the pattern paper's Fig. 9)")

@@ -22,16 +22,18 @@ from typing import Any
 import numpy as np
 
 from mocapz.codecs import CodecInfo
-from mocapz.codecs.baselines.common import check_options, finish, gaps_bytes, gaps_from, layout_columns, values_of
-from mocapz.errors import FormatError, OptionError
+from mocapz.codecs.baselines.common import finish, gaps_bytes, gaps_from, layout_columns, values_of
+from mocapz.codecs.ratesearch import coarsest_meeting
+from mocapz.codecs.target import TARGET_OPTIONS, Target
+from mocapz.errors import FormatError
 from mocapz.format.entropy import decode_int_matrix, encode_int_matrix, pack_uint64, unpack_uint64, unzigzag, zigzag
 from mocapz.model.header import ClipHeader
 from mocapz.model.motion import AnyMotion, Motion
 from mocapz.model.skeleton import Skeleton
-from mocapz.model.units import parse_length
 
 VERSION = 1
-OPTIONS = {"max_error": "position error threshold, file units or with a unit (1cm, 4mm); default 1 mm"}
+OPTIONS = TARGET_OPTIONS  # max_error is the codec's own threshold (default: 1 mm); the others are searched
+SEARCH_STEPS = 48  # thresholds tried for a distortion / ARMS target: 2**-(i/2) of the cap, i < SEARCH_STEPS
 CODE_BIAS = 160  # step = 2 ** ((code - CODE_BIAS) / 8), code in 0..255 (steps 2^-20 .. 2^11.9)
 SAFETY = 0.99  # share of max_error handed out (second-order effects of the rotation bound)
 
@@ -127,24 +129,33 @@ def default_error(motion: AnyMotion) -> float:
     unit_cm = motion.skeleton.unit_cm if isinstance(motion, Motion) else motion.unit_cm
     if unit_cm:
         return 0.1 / unit_cm
+    return 1e-3 * extent(motion)
+
+
+def extent(motion: AnyMotion) -> float:
+    """Diagonal of the clip's bounding box (file units; 1 for an empty or still clip)."""
     pos = motion.positions() if isinstance(motion, Motion) else motion.positions
+    if not np.isfinite(pos).any():
+        return 1.0
     with np.errstate(invalid="ignore"):
         ext = np.nanmax(pos.reshape(-1, 3), axis=0) - np.nanmin(pos.reshape(-1, 3), axis=0)
     diag = float(np.linalg.norm(np.nan_to_num(ext)))
-    return 1e-3 * diag if diag > 0 else 1e-3
+    return diag if diag > 0 else 1.0
 
 
 def encode(motion: AnyMotion, **options: Any) -> dict[str, bytes]:
     """Sections: ``code`` (step codes), ``bits`` (bit rate per track), ``qmin`` (range minima), ``q0``
     (first sample), ``dq`` (entropy-coded time differences), ``gaps`` (markers with gaps)."""
-    check_options("quant", options, OPTIONS)
-    unit_cm = motion.skeleton.unit_cm if isinstance(motion, Motion) else motion.unit_cm
-    if options.get("max_error") is None:
-        max_error = default_error(motion)
-    else:
-        max_error = parse_length(options["max_error"], unit_cm, "max_error")
-        if not max_error > 0:
-            raise OptionError("max_error: must be positive")
+    target = Target.from_options(options, motion.unit_cm)
+    if target.max_distortion is None and target.max_arms is None:
+        return encode_threshold(motion, target.max_error or default_error(motion))
+    cap = target.max_error or 0.1 * extent(motion)
+    thresholds = [cap * 2.0 ** (-(SEARCH_STEPS - 1 - i) / 2) for i in range(SEARCH_STEPS)]
+    return coarsest_meeting(motion, target, thresholds, lambda e: encode_threshold(motion, e), decode, "quant")
+
+
+def encode_threshold(motion: AnyMotion, max_error: float) -> dict[str, bytes]:
+    """Sections with every position error under ``max_error`` (file units)."""
     v = values_of(motion)
     code = code_for(tolerances(motion, max_error))
     q = np.round(v.x / step_of(code)).astype(np.int64)
@@ -195,7 +206,8 @@ def track_bits(sections: dict[str, bytes]) -> np.ndarray:
 
 
 INFO = CodecInfo(name="quant", version=VERSION, kinds=("skeleton", "markers"), encode=encode, decode=decode,
-                 options=OPTIONS)
+                 options=OPTIONS, summary="baseline: per-track uniform quantisation under a position error "
+                                          "threshold, every frame kept (as ACL and game engines do)")
 
 
 

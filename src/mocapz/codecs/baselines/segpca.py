@@ -23,14 +23,11 @@ import numpy as np
 
 from mocapz.codecs import CodecInfo
 from mocapz.codecs.baselines.common import (
-    check_options,
     f32_array,
     f32_bytes,
     finish,
-    float_option,
     gaps_bytes,
     gaps_from,
-    int_option,
     layout_columns,
     read_uvarints,
     uvarints,
@@ -38,18 +35,24 @@ from mocapz.codecs.baselines.common import (
 )
 from mocapz.codecs.baselines.pca import column_scale, components_for, fit, scale_of
 from mocapz.codecs.baselines.subsample import interpolate, key_frames
-from mocapz.errors import FormatError
+from mocapz.codecs.options import Option
+from mocapz.codecs.ratesearch import check_target, coarsest_meeting
+from mocapz.codecs.target import TARGET_OPTIONS, Target
+from mocapz.errors import FormatError, OptionError
 from mocapz.model.header import ClipHeader
 from mocapz.model.motion import AnyMotion
 
 VERSION = 1
-OPTIONS = {
-    "variance": "fraction of each segment's variance kept, 0 < v <= 1 (default 0.99)",
-    "components": "most principal components per segment (default 6)",
-    "key": "key-frame spacing inside a segment; cubic spline in between (default 4)",
-    "max_segment": "longest segment in frames (default 4 s)",
-}
-DEFAULTS = {"variance": 0.99, "components": 6, "key": 4}
+OPTIONS: tuple[Option, ...] = TARGET_OPTIONS + (
+    Option("variance", "float", "fraction of each segment's variance kept", low=0.0, high=1.0, low_open=True,
+           default=0.99),
+    Option("components", "int", "most principal components per segment", low=1, high=1_000_000,
+           default_text="6; searched with a target"),
+    Option("key", "int", "key-frame spacing inside a segment; cubic spline in between", low=1, high=1_000_000,
+           default=4),
+    Option("max_segment", "int", "longest segment in frames", low=2, high=10_000_000, default_text="4 s of frames"),
+)
+DEFAULT_COMPONENTS = 6
 
 
 def needed_components(y: np.ndarray, variance: float) -> int:
@@ -82,14 +85,27 @@ def segment(y: np.ndarray, variance: float, components: int, step: int, max_segm
 def encode(motion: AnyMotion, **options: Any) -> dict[str, bytes]:
     """Sections: ``head`` (key spacing, segment count), ``segs`` (length, K per segment), ``data``
     (float32 blocks), ``gaps`` (markers with gaps)."""
-    check_options("segpca", options, OPTIONS)
-    variance = float_option(options, "variance", DEFAULTS["variance"], 0.0, 1.0, lo_open=True)
+    target = Target.from_options(options, motion.unit_cm)
+    cols = max(1, motion.values[:1].size)
+    components = options.get("components")
+    if components is not None and components > cols:
+        raise OptionError(f"option components (--components) of the segpca codec must be at most {cols} for "
+                          f"this clip (its columns); got {components}")
+    if not target.active:
+        return encode_with(motion, options, options["variance"], components or DEFAULT_COMPONENTS)
+    if components is not None:
+        sections = encode_with(motion, options, options["variance"], components)
+        return check_target(motion, target, sections, decode, "segpca")
+    return coarsest_meeting(motion, target, range(cols, 0, -1), lambda c: encode_with(motion, options, 1.0, c),
+                            decode, "segpca")
+
+
+def encode_with(motion: AnyMotion, options: dict[str, Any], variance: float, components: int) -> dict[str, bytes]:
+    """Sections for a variance share and a most-components count (``key``, ``max_segment`` from options)."""
     v = values_of(motion)
-    cols = v.x.shape[1]
-    components = int_option(options, "components", DEFAULTS["components"], 1, max(cols, 1))
-    key = int_option(options, "key", DEFAULTS["key"], 1, 1_000_000)
+    key = options["key"]
     rate = float(motion.frame_rate) if motion.frame_rate > 0 else 120.0
-    max_segment = int_option(options, "max_segment", max(8, round(4 * rate)), 2, 10_000_000)
+    max_segment = options.get("max_segment") or max(8, round(4 * rate))
     step = max(4, round(rate / 8))
     y = v.x * scale_of(motion)
     lengths = segment(y, variance, components, step, max_segment)
@@ -140,4 +156,4 @@ def decode(sections: dict[str, bytes], header: ClipHeader) -> AnyMotion:
 
 
 INFO = CodecInfo(name="segpca", version=VERSION, kinds=("skeleton", "markers"), encode=encode, decode=decode,
-                 options=OPTIONS)
+                 options=OPTIONS, summary="baseline: PCA per segment, key-frame coefficients (Liu & McMillan 2006)")

@@ -17,25 +17,30 @@ from scipy.interpolate import CubicSpline
 
 from mocapz.codecs import CodecInfo
 from mocapz.codecs.baselines.common import (
-    check_options,
     f32_array,
     f32_bytes,
     finish,
     gaps_bytes,
     gaps_from,
-    int_option,
     layout_columns,
     read_uvarints,
     uvarints,
     values_of,
 )
+from mocapz.codecs.options import Option
+from mocapz.codecs.ratesearch import check_target, coarsest_meeting
+from mocapz.codecs.target import TARGET_OPTIONS, Target
 from mocapz.errors import FormatError
 from mocapz.model.header import ClipHeader
 from mocapz.model.motion import AnyMotion
 
 VERSION = 1
-OPTIONS = {"factor": "keep every N-th frame (and the last), cubic spline in between (default 4)"}
 DEFAULT_FACTOR = 4
+MAX_SEARCHED_FACTOR = 256
+OPTIONS: tuple[Option, ...] = TARGET_OPTIONS + (
+    Option("factor", "int", "keep every N-th frame (and the last), cubic spline in between", low=1, high=1_000_000,
+           default_text=f"{DEFAULT_FACTOR}; searched with a target"),
+)
 
 
 def key_frames(frames: int, factor: int) -> np.ndarray:
@@ -62,8 +67,17 @@ def interpolate(keys: np.ndarray, values: np.ndarray, frames: int) -> np.ndarray
 
 def encode(motion: AnyMotion, **options: Any) -> dict[str, bytes]:
     """Sections: ``head`` (factor), ``keys`` (float32 key-frame values), ``gaps`` (markers with gaps)."""
-    check_options("subsample", options, OPTIONS)
-    factor = int_option(options, "factor", DEFAULT_FACTOR, 1, 1_000_000)
+    target = Target.from_options(options, motion.unit_cm)
+    if not target.active:
+        return encode_factor(motion, options.get("factor") or DEFAULT_FACTOR)
+    if options.get("factor") is not None:
+        return check_target(motion, target, encode_factor(motion, options["factor"]), decode, "subsample")
+    factors = range(1, max(1, min(motion.n_frames, MAX_SEARCHED_FACTOR)) + 1)
+    return coarsest_meeting(motion, target, factors, lambda f: encode_factor(motion, f), decode, "subsample")
+
+
+def encode_factor(motion: AnyMotion, factor: int) -> dict[str, bytes]:
+    """Sections keeping every ``factor``-th frame."""
     v = values_of(motion)
     keys = key_frames(len(v.x), factor)
     sections = {"head": uvarints(factor), "keys": f32_bytes(v.x[keys])}
@@ -89,4 +103,5 @@ def decode(sections: dict[str, bytes], header: ClipHeader) -> AnyMotion:
 
 
 INFO = CodecInfo(name="subsample", version=VERSION, kinds=("skeleton", "markers"), encode=encode,
-                 decode=decode, options=OPTIONS)
+                 decode=decode, options=OPTIONS,
+                 summary="baseline: every N-th frame kept, cubic spline in between (the pattern paper's Fig. 9)")

@@ -20,5 +20,7 @@ INFO = CodecInfo(
     kinds=("skeleton", "markers"),
     encode=encode,
     decode=decode,
-    options={},
+    options=(),
+    summary="every file: the exact values back at the source's precision (integer prediction, range coding)",
+    lossy=False,
 )

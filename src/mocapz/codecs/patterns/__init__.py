@@ -1,7 +1,7 @@
 """Pattern-indexing codec (Gu, Peng & Deng 2008): hierarchical body parts, adaptive segmentation,
 normalisation, adaptive K-means pattern databases, pattern-index coding, boundary smoothing.
 
-``encode(motion, **options) -> sections`` and ``decode(sections, layout) -> motion``; options in
+``encode(motion, **options) -> sections`` and ``decode(sections, header) -> motion``; options in
 :mod:`.options`. Library mode (databases shared between clips) lives in :mod:`mocapz.library`.
 """
 
@@ -21,4 +21,6 @@ INFO = CodecInfo(
     encode=encode,
     decode=decode,
     options=OPTIONS,
+    summary="markers and skeletal clips: Gu, Peng & Deng's body-part pattern databases (adaptive segmentation, "
+            "K-means, index coding); library mode in compress-db",
 )

@@ -11,11 +11,10 @@ from mocapz.codecs.patterns.decode import decode
 from mocapz.codecs.patterns.options import settings_from
 from mocapz.codecs.patterns.pipeline import Settings
 from mocapz.codecs.patterns.prepare import Prepared, prepare
-from mocapz.codecs.patterns.rate import Target, search
-from mocapz.errors import OptionError
+from mocapz.codecs.patterns.rate import search
+from mocapz.codecs.target import ErrorMetric, Target
 from mocapz.model.header import ClipHeader
 from mocapz.model.motion import AnyMotion, MarkerMotion
-from mocapz.model.units import parse_length
 
 
 def encode(motion: AnyMotion, **options: Any) -> dict[str, bytes]:
@@ -38,31 +37,19 @@ def encode(motion: AnyMotion, **options: Any) -> dict[str, bytes]:
         sections = sections_of(coded, prep)
         return coded.decoded, sections, total_bytes(sections)
 
+    metric = ErrorMetric(motion)
+
     def check(sections: dict[str, bytes]) -> float:
-        return target.score(motion, decode(sections, ClipHeader.of(motion)))
+        return target.score(metric.of_motion(decode(sections, ClipHeader.of(motion))))
 
     return search(motion.name, [motion], settings, target, fixed, prep.addh, run, check)
 
 
 def target_from(motion: AnyMotion, options: dict[str, Any]) -> Target | None:
-    """The rate-control target from ``max_arms`` / ``max_distortion`` (None if neither is given)."""
-    arms = options.get("max_arms")
-    dist = options.get("max_distortion")
+    """The rate-control target from checked options (None if no target is given)."""
     unit_cm = motion.unit_cm if isinstance(motion, MarkerMotion) else motion.skeleton.unit_cm
-    return Target(
-        arms=None if arms is None else parse_length(arms, unit_cm, "max_arms"),
-        distortion=None if dist is None else _percent(dist),
-    ) if (arms is not None or dist is not None) else None
-
-
-def _percent(value: Any) -> float:
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise OptionError(f"max_distortion: expected a percentage, got {value!r}") from None
-    if not np.isfinite(v) or v <= 0:
-        raise OptionError(f"max_distortion: must be a positive percentage, got {value!r}")
-    return v
+    target = Target.from_options(options, unit_cm)
+    return target if target.active else None
 
 
 def code_once(motion: AnyMotion, prep: Prepared, settings: Settings) -> CodedClips:

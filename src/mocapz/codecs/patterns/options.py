@@ -1,20 +1,8 @@
-"""Options of the pattern codec: validation, weights, and the encoder settings they give.
+"""Options of the pattern codec: declarations, the encoder settings they give, and member weights.
 
-Options (``compress(motion, codec="patterns", **options)``; lengths relative to the ADDH unless noted):
-
-* ``max_arms``: target ARMS, file units or with a unit (``"6.5mm"``); the encoder searches its settings
-  and checks the result by decoding.
-* ``max_distortion``: target ``distortion_pct`` (METRICS.md), searched the same way.
-* ``theta``: Algorithm 1 key-frame threshold (fraction of the ADDH).
-* ``ratio``: Algorithm 1 ratio threshold.
-* ``tolerance``: clustering distortion threshold (fraction of the ADDH).
-* ``clusters``: initial number of clusters K.
-* ``metric``: ``"max"`` (MaxError, eq. 2) or ``"ave"`` (AveError, eq. 1).
-* ``bits``: quantisation bits of the pattern deltas.
-* ``heading``: express node offsets in a frame turning with the body (extension; False = the paper).
-* ``weights``: per-marker (or per-joint) weights: a dict, a JSON file ``{"LFHD": 10, ...}``, or the text
-  ``"LFHD=10,RFHD=10"``.
-* ``hierarchy``: JSON file giving the body-part hierarchy (:mod:`.hierarchy_json`).
+Lengths of the Algorithm 1 and clustering thresholds are relative to the ADDH (the head-marker diagonal,
+or its skeletal equivalent). Options not given keep :class:`~mocapz.codecs.patterns.pipeline.Settings`'
+defaults; with a target the encoder searches ``tolerance`` and ``bits`` unless they are given.
 """
 
 from __future__ import annotations
@@ -27,73 +15,51 @@ from typing import Any
 
 import numpy as np
 
+from mocapz.codecs.options import Option
 from mocapz.codecs.patterns.kmeans import AVE, MAX
 from mocapz.codecs.patterns.pipeline import Settings
+from mocapz.codecs.target import TARGET_OPTIONS
 from mocapz.errors import OptionError
 
-OPTIONS: dict[str, str] = {
-    "max_arms": "target ARMS, file units or with a unit (6.5mm); searched, checked by decoding",
-    "max_distortion": "target distortion_pct; searched, checked by decoding",
-    "theta": "Algorithm 1 key-frame threshold, fraction of the ADDH (head-marker diagonal)",
-    "ratio": "Algorithm 1 ratio threshold",
-    "tolerance": "clustering distortion threshold (MaxError bound), fraction of the ADDH",
-    "clusters": "initial number of clusters K",
-    "metric": "clustering error metric: max (eq. 2) or ave (eq. 1)",
-    "bits": "quantisation bits of the pattern delta frames",
-    "heading": "node offsets in a body-turning frame (true) or world axes as in the paper (false)",
-    "weights": "per-marker weights: dict, JSON file or LABEL=VALUE[,LABEL=VALUE]",
-    "hierarchy": "JSON file giving the body-part hierarchy",
-}
-
 DEFAULT = Settings()
+SEARCHED = "; searched with a target"
+
+OPTIONS: tuple[Option, ...] = TARGET_OPTIONS + (
+    Option("theta", "float", "Algorithm 1 key-frame threshold, fraction of the ADDH (head-marker diagonal)",
+           low=1e-4, high=10.0, default_text=str(DEFAULT.theta)),
+    Option("ratio", "float", "Algorithm 1 ratio threshold", low=1.0, high=100.0, default_text=str(DEFAULT.ratio)),
+    Option("tolerance", "float", "clustering threshold (MaxError bound), fraction of the ADDH", low=0.0, high=10.0,
+           default_text=f"{DEFAULT.tol}{SEARCHED}"),
+    Option("clusters", "int", "initial number of clusters K", low=1, high=100000, default_text=str(DEFAULT.k0)),
+    Option("metric", "choice", "clustering error metric: max (eq. 2) or ave (eq. 1)", choices=(MAX, AVE),
+           default_text=DEFAULT.metric),
+    Option("bits", "int", "quantisation bits of the pattern delta frames", low=1, high=16,
+           default_text=f"{DEFAULT.bits}{SEARCHED}"),
+    Option("heading", "bool", "node offsets in a body-turning frame (true) or world axes as in the paper (false)",
+           default_text=str(DEFAULT.heading).lower()),
+    Option("weights", "weights", "per-marker (or per-joint) weights: JSON file or LABEL=VALUE[,LABEL=VALUE]",
+           default_text="1 for every member"),
+    Option("hierarchy", "file", "JSON file giving the body-part hierarchy",
+           default_text="from the marker names, or the joint tree"),
+)
+
+_SETTING = {"theta": "theta", "ratio": "ratio", "tolerance": "tol", "clusters": "k0", "metric": "metric",
+            "bits": "bits", "heading": "heading"}
 
 
-def _number(name: str, value: Any, lo: float, hi: float, integer: bool = False) -> float:
+def settings_from(options: dict[str, Any], base: Settings = DEFAULT) -> Settings:
+    """Encoder settings from checked options (targets, weights and hierarchy are handled apart)."""
+    return replace(base, **{_SETTING[k]: options[k] for k in _SETTING if options.get(k) is not None})
+
+
+def _number(name: str, value: Any, lo: float, hi: float) -> float:
     try:
         v = float(value)
     except (TypeError, ValueError):
         raise OptionError(f"{name}: expected a number, got {value!r}") from None
-    if not math.isfinite(v) or not lo <= v <= hi or (integer and v != int(v)):
-        kind = "an integer" if integer else "a number"
-        raise OptionError(f"{name}: must be {kind} between {lo:g} and {hi:g}, got {value!r}")
-    return int(v) if integer else v
-
-
-def _flag(name: str, value: Any) -> bool:
-    if isinstance(value, bool):
-        return value
-    text = str(value).strip().lower()
-    if text in ("1", "true", "yes", "on"):
-        return True
-    if text in ("0", "false", "no", "off"):
-        return False
-    raise OptionError(f"{name}: expected true or false, got {value!r}")
-
-
-def settings_from(options: dict[str, Any], base: Settings = DEFAULT) -> Settings:
-    """Encoder settings from the explicit options (targets, weights and hierarchy are handled apart)."""
-    unknown = set(options) - set(OPTIONS)
-    if unknown:
-        raise OptionError(f"unknown option(s) for the patterns codec: {', '.join(sorted(unknown))} "
-                          f"(known: {', '.join(OPTIONS)})")
-    s = base
-    if options.get("theta") is not None:
-        s = replace(s, theta=_number("theta", options["theta"], 1e-4, 10.0))
-    if options.get("ratio") is not None:
-        s = replace(s, ratio=_number("ratio", options["ratio"], 1.0, 100.0))
-    if options.get("tolerance") is not None:
-        s = replace(s, tol=_number("tolerance", options["tolerance"], 0.0, 10.0))
-    if options.get("clusters") is not None:
-        s = replace(s, k0=int(_number("clusters", options["clusters"], 1, 100000, integer=True)))
-    if options.get("bits") is not None:
-        s = replace(s, bits=int(_number("bits", options["bits"], 1, 16, integer=True)))
-    if options.get("metric") is not None:
-        if options["metric"] not in (MAX, AVE):
-            raise OptionError(f"metric: expected 'max' or 'ave', got {options['metric']!r}")
-        s = replace(s, metric=options["metric"])
-    if options.get("heading") is not None:
-        s = replace(s, heading=_flag("heading", options["heading"]))
-    return s
+    if not math.isfinite(v) or not lo <= v <= hi:
+        raise OptionError(f"{name}: must be a number between {lo:g} and {hi:g}, got {value!r}")
+    return v
 
 
 def parse_weights(spec: Any, names: list[str], source: str | None = None) -> np.ndarray:

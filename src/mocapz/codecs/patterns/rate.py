@@ -10,7 +10,6 @@ bytes, and a :class:`~mocapz.errors.TargetError` is raised if no setting meets t
 from __future__ import annotations
 
 import math
-import warnings
 from collections.abc import Callable
 from dataclasses import dataclass, replace
 from typing import Any
@@ -18,33 +17,13 @@ from typing import Any
 import numpy as np
 
 from mocapz.codecs.patterns.pipeline import Settings
+from mocapz.codecs.target import ErrorMetric, Target
 from mocapz.errors import TargetError
-from mocapz.metrics.figures import evaluate
 from mocapz.model.motion import AnyMotion, MarkerMotion
 
 TOL_RANGE = (0.002, 0.4)  # searched clustering thresholds, fractions of the ADDH
 BITS_RANGE = (2, 10)
 MAX_STEPS = 6
-
-
-@dataclass
-class Target:
-    """Rate-control target: maximum ARMS (file units) and/or maximum distortion_pct."""
-
-    arms: float | None = None
-    distortion: float | None = None
-
-    def score(self, motion: AnyMotion, decoded: AnyMotion) -> float:
-        """Largest of measured / allowed over the given figures (<= 1 meets the target)."""
-        with warnings.catch_warnings():  # all-missing markers make the metrics' nan-means warn
-            warnings.simplefilter("ignore", RuntimeWarning)
-            rep = evaluate(motion, decoded)
-        s = 0.0
-        if self.arms is not None:
-            s = max(s, rep.arms / self.arms if self.arms > 0 else (0.0 if rep.arms == 0 else math.inf))
-        if self.distortion is not None:
-            s = max(s, rep.distortion_pct / self.distortion)
-        return s
 
 
 def as_motion(motion: AnyMotion, values: np.ndarray) -> AnyMotion:
@@ -79,14 +58,15 @@ def search(name: str, motions: list[AnyMotion], base: Settings, target: Target, 
         check: ``payload -> score`` measured by really decoding the payload.
     """
     cache: dict[tuple[int, float], Trial] = {}
+    metrics = [ErrorMetric(m) for m in motions]
 
     def trial(bits: int, tol: float) -> Trial:
         key = (bits, round(tol, 6))
         if key not in cache:
             s = replace(base, bits=bits, tol=tol)
             decoded, payload, size = run(s)
-            score = max((target.score(m, as_motion(m, d)) for m, d in zip(motions, decoded, strict=True)),
-                        default=0.0)
+            score = max((target.score(em.of_motion(as_motion(m, d)))
+                         for em, m, d in zip(metrics, motions, decoded, strict=True)), default=0.0)
             cache[key] = Trial(s, score / (1.0 - MARGIN), size, payload)
         return cache[key]
 
@@ -112,20 +92,20 @@ def search(name: str, motions: list[AnyMotion], base: Settings, target: Target, 
                     break
                 best, b = cand, b + direction
     if best is None:
-        raise TargetError(f"{name}: the patterns codec cannot meet the target ({_describe(target)}) "
+        raise TargetError(f"{name}: the patterns codec cannot meet the target ({target.describe()}) "
                           f"with these options")
     measured = check(best.payload)
     if measured > 1.0:
-        raise TargetError(f"{name}: decoded result misses the target ({_describe(target)}; "
+        raise TargetError(f"{name}: decoded result misses the target ({target.describe()}; "
                           f"measured {measured:.4f} of the allowed)")
     return best.payload
 
 
 def _initial_bits(target: Target, addh: float) -> int:
     """Coarser quantisation for looser targets (ARMS relative to the ADDH)."""
-    if target.arms is None:
+    if target.max_arms is None:
         return 3
-    rel = target.arms / max(addh, 1e-12)
+    rel = target.max_arms / max(addh, 1e-12)
     return 2 if rel > 0.03 else 3 if rel > 0.012 else 4 if rel > 0.006 else 5
 
 
@@ -171,12 +151,3 @@ def _secant(p: Trial, f: Trial) -> float:
     x = a + (0.0 - sa) * (b - a) / (sb - sa) if sb != sa else 0.5 * (a + b)
     x = min(max(x, a + 0.15 * (b - a)), b - 0.15 * (b - a))
     return math.exp(x)
-
-
-def _describe(target: Target) -> str:
-    parts = []
-    if target.arms is not None:
-        parts.append(f"ARMS <= {target.arms:.4g} file units")
-    if target.distortion is not None:
-        parts.append(f"distortion <= {target.distortion:.4g} %")
-    return ", ".join(parts)

@@ -8,7 +8,8 @@ from __future__ import annotations
 
 from mocapz.codecs import CodecInfo
 from mocapz.codecs.pga.decode import decode
-from mocapz.codecs.pga.encode import encode
+from mocapz.codecs.pga.options import OPTIONS
+from mocapz.codecs.pga.ratecontrol import encode
 
 VERSION = 1
 
@@ -18,13 +19,6 @@ INFO = CodecInfo(
     kinds=("skeleton",),
     encode=encode,
     decode=decode,
-    options={
-        "geodesics": "number of principal geodesics k",
-        "lod_root": "levels of detail dropped from the root trajectory",
-        "lod_effectors": "levels of detail dropped from the end-effector trajectories",
-        "effectors": "end-effector joint names (comma-separated)",
-        "max_distortion": "target distortion_pct",
-        "max_error": "target maximum position error",
-        "bits": "bits of the principal directions",
-    },
+    options=OPTIONS,
+    summary="skeletal clips: Tournier et al.'s PGA pose model, multiscale trajectories, PGA-based IK decoding",
 )

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any
 
 import numpy as np
 
@@ -135,10 +134,3 @@ def encode_outliers(motion: Motion, frames: list[int]) -> bytes:
     dec = int(min(motion.decimals.max(), 9)) if motion.decimals is not None and motion.decimals.size else 4
     vals = np.round(motion.channels[frames] * 10.0**dec).astype(np.int64)
     return pack_uint64(zigzag(np.concatenate([[dec], vals.ravel()])))
-
-
-def encode(motion: Motion, **options: Any) -> dict[str, bytes]:
-    """Container entry point (options: see :func:`mocapz.codecs.pga.options.parse_options`)."""
-    from mocapz.codecs.pga.ratecontrol import encode_with_options
-
-    return encode_with_options(motion, **options)

@@ -10,100 +10,31 @@ until no step does. Every candidate is checked by decoding it with the real deco
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
 from mocapz.codecs.pga.decode import decode_channels, decode_rows
+from mocapz.codecs.pga.effectors import find_effectors
 from mocapz.codecs.pga.encode import Prepared, encode_prepared, prepare
 from mocapz.codecs.pga.model import k_for_variance
+from mocapz.codecs.pga.options import DEFAULT_VARIANCE, fixed_settings
 from mocapz.codecs.pga.params import PGASettings
+from mocapz.codecs.target import ErrorMetric, Errors, Target
 from mocapz.errors import OptionError, TargetError
-from mocapz.metrics.figures import distortion_pct
 from mocapz.model.kinematics import forward_kinematics
 from mocapz.model.motion import Motion
-from mocapz.model.units import parse_length
-
-_KNOWN = {"geodesics", "lod_root", "lod_effectors", "lod_coords", "effectors", "max_distortion", "max_error",
-          "bits", "pos_step", "coord_step", "rot_step", "paper", "iterations", "variance", "outliers"}
 
 
-@dataclass
-class Target:
-    max_distortion: float | None = None
-    max_error: float | None = None  # file units
+def encode(motion: Motion, **options: Any) -> dict[str, bytes]:
+    """Container entry point: encode with fixed settings, or search them when a target is given.
 
-    def met(self, d: float, e: float) -> bool:
-        return (self.max_distortion is None or d <= self.max_distortion) and (
-            self.max_error is None or e <= self.max_error)
-
-    @property
-    def active(self) -> bool:
-        return self.max_distortion is not None or self.max_error is not None
-
-
-def _int_option(options: dict[str, Any], name: str, lo: int = 0) -> int | None:
-    if options.get(name) is None:
-        return None
-    try:
-        v = int(options[name])
-    except (TypeError, ValueError):
-        raise OptionError(f"{name.replace('_', '-')} must be an integer, got {options[name]!r}") from None
-    if v < lo:
-        raise OptionError(f"{name.replace('_', '-')} must be >= {lo}, got {v}")
-    return v
-
-
-def parse_options(motion: Motion, options: dict[str, Any]) -> tuple[dict[str, Any], Target, list[str] | None]:
-    """Validate user options; return fixed settings, the target, and effector names."""
-    unknown = set(options) - _KNOWN
-    if unknown:
-        raise OptionError(f"unknown PGA option(s): {', '.join(sorted(unknown))} (known: {', '.join(sorted(_KNOWN))})")
-    fixed: dict[str, Any] = {}
-    k = _int_option(options, "geodesics", 1)
-    if k is not None:
-        fixed["k"] = k
-    for name in ("lod_root", "lod_effectors", "lod_coords"):
-        v = _int_option(options, name, 0)
-        if v is not None:
-            fixed[name] = v
-    bits = _int_option(options, "bits", 2)
-    if bits is not None:
-        fixed["basis_bits"] = bits
-    it = _int_option(options, "iterations", 1)
-    if it is not None:
-        fixed["iterations"] = it
-    for name in ("pos_step", "coord_step", "rot_step"):
-        if options.get(name) is not None:
-            v = float(options[name])
-            if not v > 0:
-                raise OptionError(f"{name} must be positive")
-            fixed[name] = v
-    if options.get("paper"):
-        # the paper's decoder: IK from end effectors alone, with its temporal regulariser
-        fixed["use_coords"] = False
-        fixed["lam_temporal"] = 1e-3
-    target = Target()
-    if options.get("max_distortion") is not None:
-        v = float(options["max_distortion"])
-        if not v > 0:
-            raise OptionError("max-distortion must be a positive percentage")
-        target.max_distortion = v
-    if options.get("max_error") is not None:
-        target.max_error = parse_length(options["max_error"], motion.skeleton.unit_cm, "max-error")
-        if not target.max_error > 0:
-            raise OptionError("max-error must be positive")
-    eff = options.get("effectors")
-    names = [n.strip() for n in eff.split(",") if n.strip()] if isinstance(eff, str) else eff
-    return fixed, target, names
-
-
-def encode_with_options(motion: Motion, **options: Any) -> dict[str, bytes]:
-    """Encode with fixed settings, or search them when a target is given."""
-    fixed, target, names = parse_options(motion, options)
-    from mocapz.codecs.pga.effectors import find_effectors
-
+    ``options`` are checked (:data:`mocapz.codecs.pga.options.OPTIONS`); lengths are resolved here against
+    the clip's unit.
+    """
+    fixed = fixed_settings(options)
+    target = Target.from_options(options, motion.skeleton.unit_cm)
+    names = options.get("effectors")
     effectors = list(find_effectors(motion.skeleton, names)) if names else None
     outl = options.get("outliers")
     p = prepare(motion, effectors, None if outl is None else list(outl))
@@ -121,14 +52,14 @@ def default_settings(p: Prepared, fixed: dict[str, Any], options: dict[str, Any]
     """Sensible settings without a target: k explaining 99.5 % of the variance (at most 20)."""
     s = PGASettings()
     if p.full_model is not None:
-        frac = float((options or {}).get("variance", 0.995))
+        frac = float((options or {}).get("variance") or DEFAULT_VARIANCE)
         s = s.replace(k=min(k_for_variance(p.full_model, frac), 20, p.full_model.basis.shape[1]))
     return s.replace(**fixed)
 
 
 def evaluate_settings(p: Prepared, s: PGASettings, rows: np.ndarray | None = None
-                      ) -> tuple[dict[str, bytes], int, float, float]:
-    """Encode, decode with the real decoder, and measure: (sections, bytes, distortion_pct, max_err).
+                      ) -> tuple[dict[str, bytes], int, Errors]:
+    """Encode, decode with the real decoder, and measure: (sections, bytes, errors).
 
     With ``rows`` (indices of kept frames) only those frames are decoded and measured: an estimate used
     while searching; the final choice is always checked on every frame.
@@ -143,10 +74,7 @@ def evaluate_settings(p: Prepared, s: PGASettings, rows: np.ndarray | None = Non
     else:
         ch = decode_rows(sk, s_dec, sections, len(p.kept), rows)
         a = _reference(p, rows)
-    b = forward_kinematics(sk, ch)[0]
-    d = distortion_pct(a, b)
-    e = float(np.linalg.norm(a - b, axis=-1).max()) if a.size else 0.0
-    return sections, size, d, e
+    return sections, size, ErrorMetric.between(a, forward_kinematics(sk, ch)[0])
 
 
 def _reference(p: Prepared, rows: np.ndarray | None) -> np.ndarray:
@@ -189,13 +117,12 @@ def _moves(s: PGASettings, fixed: dict[str, Any], k_min: int) -> list[tuple[str,
     return moves
 
 
-def _efficiency(saved: int, cur: tuple[float, float], new: tuple[float, float], target: Target) -> float:
+def _efficiency(saved: int, cur: Errors, new: Errors, target: Target) -> float:
     """Bytes saved per fraction of the remaining error budget a move uses. Moves using under a tenth of
     the budget rank by bytes saved alone, so cheap small steps do not crowd out big savings."""
     used = 0.0
-    for limit, a, b in ((target.max_distortion, cur[0], new[0]), (target.max_error, cur[1], new[1])):
-        if limit is not None:
-            used = max(used, (b - a) / max(limit - a, 1e-12))
+    for (limit, a), (_, b) in zip(target.limits(cur), target.limits(new), strict=True):
+        used = max(used, (b - a) / max(limit - a, 1e-12))
     return saved / max(used, 0.1)
 
 
@@ -211,26 +138,25 @@ def search(p: Prepared, fixed: dict[str, Any], target: Target) -> tuple[dict[str
         start = PGASettings(k=k, lod_root=0, lod_effectors=0, lod_coords=0, pos_step=max(scale, 1e-6) * 2e-5,
                             coord_step=1e-3, rot_step=2e-4, basis_bits=12, mean_step=5e-5,
                             iterations=6).replace(**fixed)
-        best_sections, best_size, d, e = evaluate_settings(p, start)
-        if target.met(d, e):
+        best_sections, best_size, err = evaluate_settings(p, start)
+        if target.met(err):
             met = True
             break
     if not met:
         raise TargetError(
-            f"cannot meet the target on this clip: the finest setting tried gives distortion {d:.4g} % "
-            f"and max error {e:.4g} units"
+            f"cannot meet the target on this clip: the finest setting tried gives distortion "
+            f"{err.distortion_pct:.4g} %, max error {err.max_error:.4g} and ARMS {err.arms:.4g} file units"
         )
     best = start
-    log = [f"start k={start.k} size={best_size} d={d:.4g} e={e:.4g}"]
+    log = [f"start k={start.k} size={best_size} {_show(err)}"]
     n = len(p.kept)
     stride = max(1, n // 300) | 1  # odd, so the subset samples every level of the lifting pyramid
     rows = np.arange(0, n, stride) if stride > 1 else None
     margin = 0.97 if rows is not None else 1.0  # estimates on a frame subset keep a little headroom
-    tight = Target(None if target.max_distortion is None else target.max_distortion * margin,
-                   None if target.max_error is None else target.max_error * margin)
+    tight = target.scaled(margin)
     failed: set[str] = set()  # moves that broke the target are not tried again (errors grow monotonically)
     history = [best]
-    cur = (d, e) if rows is None else evaluate_settings(p, best, rows)[2:]
+    cur = err if rows is None else evaluate_settings(p, best, rows)[2]
     stale: dict[str, float] = {}  # lazy greedy: last known efficiency of every move (an estimate)
     while True:
         moves = {name: make for name, make in _moves(best, fixed, 1) if name not in failed}
@@ -238,16 +164,16 @@ def search(p: Prepared, fixed: dict[str, Any], target: Target) -> tuple[dict[str
         accepted = None
         for i, name in enumerate(order):
             cand = moves[name]()
-            sec, size, dd, ee = evaluate_settings(p, cand, rows)
-            if not tight.met(dd, ee):
+            sec, size, got = evaluate_settings(p, cand, rows)
+            if not tight.met(got):
                 failed.add(name)
                 stale.pop(name, None)
                 continue
-            eff = _efficiency(best_size - size, cur, (dd, ee), tight) if size < best_size else -1.0
+            eff = _efficiency(best_size - size, cur, got, tight) if size < best_size else -1.0
             stale[name] = eff
             rest = [stale.get(nm, np.inf) for nm in order[i + 1 :]]
             if eff > 0 and eff >= max(rest, default=-np.inf):
-                accepted = (size, name, cand, sec, dd, ee)
+                accepted = (size, name, cand, sec, got)
                 break
         if accepted is None:
             # stale estimates may have hidden a good move: take the best fresh one, if any
@@ -256,32 +182,36 @@ def search(p: Prepared, fixed: dict[str, Any], target: Target) -> tuple[dict[str
                 break
             name = max(fresh)[1]
             cand = moves[name]()
-            sec, size, dd, ee = evaluate_settings(p, cand, rows)
-            if not (tight.met(dd, ee) and size < best_size):
+            sec, size, got = evaluate_settings(p, cand, rows)
+            if not (tight.met(got) and size < best_size):
                 break
-            accepted = (size, name, cand, sec, dd, ee)
-        size, name, cand, sec, dd, ee = accepted
+            accepted = (size, name, cand, sec, got)
+        size, name, cand, sec, got = accepted
         best, best_size, best_sections = cand, size, sec
-        cur = (dd, ee)
+        cur = got
         history.append(best)
-        log.append(f"{name}: size={size} d={dd:.4g} e={ee:.4g}" + (" (frame subset)" if rows is not None else ""))
+        log.append(f"{name}: size={size} {_show(got)}" + (" (frame subset)" if rows is not None else ""))
     if rows is not None:
         # check on every frame; step back along the path taken until the target holds
         for cand in reversed(history):
-            sec, size, dd, ee = evaluate_settings(p, cand)
-            if target.met(dd, ee):
+            sec, size, got = evaluate_settings(p, cand)
+            if target.met(got):
                 best, best_sections = cand, sec
-                log.append(f"checked on all frames: size={size} d={dd:.4g} e={ee:.4g}")
+                log.append(f"checked on all frames: size={size} {_show(got)}")
                 break
-            log.append(f"all frames: d={dd:.4g} e={ee:.4g} misses the target, stepping back")
+            log.append(f"all frames: {_show(got)} misses the target, stepping back")
     # decoding speed: fewer IK iterations when the target still holds (same size, faster decode)
     if "iterations" not in fixed:
-        e_ref = evaluate_settings(p, best)[3]
+        e_ref = evaluate_settings(p, best)[2].max_error
         for it in (3, 1, 0):
             cand = best.replace(iterations=it)
-            sec, size, dd, ee = evaluate_settings(p, cand)
-            if not target.met(dd, ee) or ee > 1.1 * e_ref:  # faster, but not at the price of local failures
+            sec, size, got = evaluate_settings(p, cand)
+            if not target.met(got) or got.max_error > 1.1 * e_ref:  # faster, but not at the price of local failures
                 break
             best, best_sections = cand, sec
-            log.append(f"iterations={it}: d={dd:.4g} e={ee:.4g}")
+            log.append(f"iterations={it}: {_show(got)}")
     return best_sections, best, log
+
+
+def _show(e: Errors) -> str:
+    return f"d={e.distortion_pct:.4g} e={e.max_error:.4g} arms={e.arms:.4g}"
