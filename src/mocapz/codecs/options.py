@@ -208,7 +208,7 @@ def validate(codec: str, declared: tuple[Option, ...], options: dict[str, Any]) 
 def options_markdown(codecs: list[Any]) -> str:
     """``docs/options.md``: every codec's options, generated from the declarations."""
     lines = ["# Codec options", "",
-             "Generated from the codecs' option declarations (`python -m mocapz.codecs.options > docs/options.md`;",
+             "Generated from the codecs' option declarations (`python -m mocapz.codecs > docs/options.md`;",
              "a test keeps this file in step). Lengths take a unit (`2cm`, `4mm`, `1in`) or are in the file's",
              "own length unit; `mocapz compress --codec NAME --help` prints the same table for one codec.", ""]
     for info in codecs:
@@ -223,8 +223,3 @@ def options_markdown(codecs: list[Any]) -> str:
         lines.append("")
     return "\n".join(lines)
 
-
-if __name__ == "__main__":  # pragma: no cover - regenerates docs/options.md
-    from mocapz.codecs import all_codecs
-
-    print(options_markdown(all_codecs()), end="")
