@@ -62,8 +62,8 @@ def test_plan_mirrors_layout_and_separates_same_stems(library: Path, tmp_path: P
     shutil.copyfile(library / "markers" / "Gait.trc", library / "09_06.trc")
     jobs = plan(library, tmp_path / "out")
     outs = {j.name: Path(j.output).relative_to((tmp_path / "out").resolve()).as_posix() for j in jobs}
-    assert outs["run/09_01.bvh"] == "run/09_01.mcz"
-    assert outs["acro/backflip.amc"] == "acro/backflip.mcz"
+    assert outs["run/09_01.bvh"] == "run/09_01.bvh.mcz"
+    assert outs["acro/backflip.amc"] == "acro/backflip.amc.mcz"
     assert outs["09_06.bvh"] == "09_06.bvh.mcz" and outs["09_06.trc"] == "09_06.trc.mcz"
     assert [j.index for j in jobs] == list(range(len(jobs)))
 
@@ -83,12 +83,12 @@ def test_serial_and_process_pool_write_identical_bytes(library: Path, tmp_path: 
     assert serial.mode == "serial" and pooled.mode == "processes" and pooled.workers == 2
     assert not serial.failed and not pooled.failed
     a, b = _outputs(tmp_path / "serial"), _outputs(tmp_path / "jobs2")
-    assert sorted(a) == sorted(n.rsplit(".", 1)[0] + ".mcz" for n in EXPECTED)
+    assert sorted(a) == sorted(n + ".mcz" for n in EXPECTED)
     assert a == b
     assert [r.name for r in serial.results] == EXPECTED == [r.name for r in pooled.results]
     assert serial.frames == pooled.frames > 0
     # lossless: the files decode to the inputs
-    back = mocapz.decompress((tmp_path / "jobs2" / "run" / "02_03.mcz").read_bytes())
+    back = mocapz.decompress((tmp_path / "jobs2" / "run" / "02_03.bvh.mcz").read_bytes())
     assert np.array_equal(back.channels, mocapz.load(library / "run" / "02_03.bvh").channels)
 
 
@@ -125,24 +125,22 @@ def test_corrupt_clip_is_reported_and_others_complete(library: Path, tmp_path: P
     assert len(errors) == 2
     assert str(library / "garbage.c3d") in errors[0] and "not a C3D file" in errors[0]
     assert str(library / "run" / "broken.bvh") in errors[1]
-    assert "5/7 clips compressed, 2 FAILED" in out
+    assert "5/7 clips compressed, 2 FAILED" in err and out == ""  # messages go to stderr, stdout is for data
     written = _outputs(tmp_path / "out")
-    assert sorted(written) == sorted(n.rsplit(".", 1)[0] + ".mcz" for n in EXPECTED)
+    assert sorted(written) == sorted(n + ".mcz" for n in EXPECTED)
 
 
 def test_existing_outputs_kept_without_force(library: Path, tmp_path: Path,
                                              capsys: pytest.CaptureFixture[str]) -> None:
     out_dir = tmp_path / "out"
     (out_dir / "run").mkdir(parents=True)
-    (out_dir / "run" / "09_01.mcz").write_bytes(b"old")
-    rc = run_batch_compress(library, out_dir, "lossless", {}, 1, None, False, False)
-    err = capsys.readouterr().err
-    assert rc == 1
-    assert (out_dir / "run" / "09_01.mcz").read_bytes() == b"old"
-    assert "run/09_01.bvh" in err and "exists" in err
-    assert (out_dir / "run" / "02_03.mcz").exists()
+    (out_dir / "run" / "09_01.bvh.mcz").write_bytes(b"old")
+    with pytest.raises(MocapzError, match="09_01.bvh.mcz: output exists"):  # found before any clip is read
+        run_batch_compress(library, out_dir, "lossless", {}, 1, None, False, False)
+    assert (out_dir / "run" / "09_01.bvh.mcz").read_bytes() == b"old"
+    assert not (out_dir / "run" / "02_03.bvh.mcz").exists()
     assert run_batch_compress(library, out_dir, "lossless", {}, 1, None, True, False) == 0
-    assert (out_dir / "run" / "09_01.mcz").read_bytes()[:3] != b"old"
+    assert (out_dir / "run" / "09_01.bvh.mcz").read_bytes()[:3] != b"old"
 
 
 def test_json_report(library: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

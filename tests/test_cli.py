@@ -34,9 +34,10 @@ def listing(folder: Path) -> list[str]:
     return sorted(p.name for p in folder.iterdir())
 
 
-def assert_one_line_error(res: subprocess.CompletedProcess[str], names: str) -> str:
-    """Exit code 1, exactly one line on stderr that names ``names``, no traceback. Returns the line."""
-    assert res.returncode == 1, (res.returncode, res.stdout, res.stderr)
+def assert_one_line_error(res: subprocess.CompletedProcess[str], names: str, code: int = 1) -> str:
+    """Exit code ``code`` (1: a file failed, 2: usage), exactly one line on stderr that names ``names``, no
+    traceback. Returns the line."""
+    assert res.returncode == code, (res.returncode, res.stdout, res.stderr)
     lines = res.stderr.splitlines()
     assert len(lines) == 1, res.stderr
     assert "Traceback" not in res.stderr and "internal error" not in res.stderr, res.stderr
@@ -148,7 +149,7 @@ def test_decompress_bad_mcz(kind: str, dirs: tuple[Path, Path], mcz: Path) -> No
 def test_decompress_wrong_output_extension(dirs: tuple[Path, Path], mcz: Path) -> None:
     _, out = dirs
     res = mocapz_cli("decompress", mcz, "-o", out / "x.xyz")
-    assert_one_line_error(res, "x.xyz")
+    assert_one_line_error(res, "x.xyz", code=2)
     assert listing(out) == []
 
 
@@ -172,17 +173,20 @@ def test_info_and_eval_bad_input(dirs: tuple[Path, Path]) -> None:
     assert_one_line_error(mocapz_cli("eval", data_path(RUN), src / "nothing.bvh"), "nothing.bvh")
 
 
-@pytest.mark.parametrize("args", [["--codec", "nosuch"], ["--bits", "8"]], ids=["unknown-codec", "bad-option"])
-def test_compress_bad_options(args: list[str], dirs: tuple[Path, Path]) -> None:
+@pytest.mark.parametrize(("args", "named"), [(["--codec", "nosuch"], "nosuch"), (["--bits", "8"], "--bits"),
+                                             (["--codec", "PGA", "--geodesics", "0"], "--geodesics"),
+                                             (["--codec", "patterns", "--max-error", "2 parsecs"], "--max-error")],
+                         ids=["unknown-codec", "option-of-another-codec", "out-of-range", "bad-length"])
+def test_compress_bad_options(args: list[str], named: str, dirs: tuple[Path, Path]) -> None:
     _, out = dirs
     res = mocapz_cli("compress", data_path(RUN), "-o", out / "x.mcz", *args)
-    assert res.returncode == 1 and len(res.stderr.splitlines()) == 1 and "Traceback" not in res.stderr
+    assert_one_line_error(res, named, code=2)
     assert listing(out) == []
 
 
 # ---------------------------------------------------------------------------------- usage errors
-@pytest.mark.parametrize("args", [["compress", "x.bvh"], ["eval", "a.bvh"], ["frobnicate"]],
-                         ids=["no-output", "one-file", "unknown-command"])
+@pytest.mark.parametrize("args", [["compress"], ["eval", "a.bvh"], ["frobnicate"], ["compress", "x.bvh", "--bogus"]],
+                         ids=["no-input", "one-file", "unknown-command", "unknown-flag"])
 def test_usage_errors_exit_2(args: list[str], tmp_path: Path) -> None:
     res = mocapz_cli(*args, cwd=tmp_path)
     assert res.returncode == 2, res.stderr

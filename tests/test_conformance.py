@@ -458,12 +458,7 @@ def test_damaged_sections_fail_cleanly(codec: str, kind: str, damage: str, reque
 
 
 # ------------------------------------------------------------------------------------------------ 5. tiny clips
-EMPTY_MARKERS_REASON = ("bug: mocapz.compress of a 0-frame MarkerMotion raises a bare ValueError ('cannot reshape "
-                        "array of size 0 into shape (0,newaxis)') from values_of() in codecs/baselines/common.py "
-                        "(positions.reshape(n_frames, -1)), not a MocapzError")
-TINY = [pytest.param(c, k, n, id=f"{c}-{k}-{n}frames",
-                     marks=[pytest.mark.xfail(strict=True, raises=ValueError, reason=EMPTY_MARKERS_REASON)]
-                     if (n == 0 and k == "markers" and c in ("subsample", "pca", "segpca", "quant")) else [])
+TINY = [pytest.param(c, k, n, id=f"{c}-{k}-{n}frames")
         for c, k in CASES for n in (0, 1, 2)]
 
 

@@ -1,8 +1,9 @@
 """``mocapz compress DIR -o OUTDIR``: the command-line side of batch compression (see :mod:`mocapz.parallel.folder`).
 
 ``mocapz compress`` calls :func:`run_batch_compress` when its INPUT is a folder. Output: one line per
-failed clip on stderr (``mocapz: error: PATH: reason``), then a summary line on stdout (or one JSON object
-with ``--json``); exit code 1 if any clip failed, else 0.
+failed clip on stderr (``mocapz: error: PATH: reason``), then a summary line on stderr (or one JSON object
+on stdout with ``--json``); exit code 1 if any clip failed, else 0. Existing outputs are found before any
+clip is read.
 """
 
 from __future__ import annotations
@@ -14,21 +15,23 @@ from typing import Any
 
 import click
 
+from mocapz.cli.common import Say
+from mocapz.cli.outputs import check_outputs
+from mocapz.codecs import get_codec
 from mocapz.errors import MocapzError
-from mocapz.parallel.discover import BATCH_EXTENSIONS, discover
+from mocapz.parallel.discover import BATCH_EXTENSIONS, discover, plan
 from mocapz.parallel.folder import compress_folder
 from mocapz.parallel.report import BatchReport
 
-# Codec options naming files: made absolute, so workers whose working folder differs (Dask) find them.
-_PATH_OPTIONS = ("hierarchy", "weights")
 
-
-def _absolute_paths(options: dict[str, Any]) -> dict[str, Any]:
+def _absolute_paths(codec: str, options: dict[str, Any]) -> dict[str, Any]:
+    """Options naming files (declared kind ``file`` or ``weights``) made absolute, so that workers whose
+    working folder differs (Dask) find them."""
     out = dict(options)
-    for key in _PATH_OPTIONS:
-        v = out.get(key)
-        if isinstance(v, str) and v and Path(v).exists():
-            out[key] = str(Path(v).resolve())
+    for o in get_codec(codec).options:
+        v = out.get(o.name)
+        if o.kind in ("file", "weights") and isinstance(v, str) and v and Path(v).exists():
+            out[o.name] = str(Path(v).resolve())
     return out
 
 
@@ -53,26 +56,29 @@ def summary_line(report: BatchReport, input_dir: Path, output_dir: Path) -> str:
 
 
 def run_batch_compress(input_dir: Path, output_dir: Path, codec: str, options: dict[str, Any], jobs: int | None,
-                       scheduler: str | None, force: bool, as_json: bool) -> int:
+                       scheduler: str | None, force: bool, as_json: bool, say: Say | None = None) -> int:
     """Compress every clip under ``input_dir`` into ``output_dir``; return the exit code (0, or 1 if any failed).
 
     Args:
         input_dir: folder searched recursively for ``.bvh``, ``.amc``, ``.c3d`` and ``.trc`` files.
         output_dir: where the ``.mcz`` files go, mirroring the input layout (created if missing).
-        codec, options: codec name and its options (only those given), as for one file.
+        codec, options: codec name and its checked options, as for one file.
         jobs: worker processes (``None``: one per CPU, ``1``: serial); with ``scheduler="local"`` the
             number of Dask workers.
         scheduler: Dask scheduler address, ``"local"`` for a LocalCluster on 127.0.0.1, or ``None``.
         force: overwrite existing outputs (otherwise those clips fail with "output exists").
         as_json: print one JSON object (totals, failures, per-clip results) instead of the summary line.
+        say: messages (``-q`` / ``-v``).
 
     Errors about the whole batch (no such folder, no motion file in it, unknown codec, unreachable
     scheduler) are raised as :class:`~mocapz.errors.MocapzError` for the CLI's usual one-line report.
     """
+    say = say or Say()
     if not discover(input_dir):
         raise MocapzError(f"{input_dir}: no motion files ({', '.join(BATCH_EXTENSIONS)}) in this folder")
-    report = compress_folder(input_dir, output_dir, codec, _absolute_paths(options), jobs=jobs, scheduler=scheduler,
-                             force=force, progress=not as_json)
+    check_outputs([Path(j.output) for j in plan(input_dir, output_dir)], force, folders_made=True)
+    report = compress_folder(input_dir, output_dir, codec, _absolute_paths(codec, options), jobs=jobs,
+                             scheduler=scheduler, force=force, progress=not (as_json or say.quiet))
     root = Path(input_dir)
     for r in report.failed:
         click.echo(f"mocapz: error: {root / r.name}: {r.error}", err=True)
@@ -81,6 +87,6 @@ def run_batch_compress(input_dir: Path, output_dir: Path, codec: str, options: d
         d.update(input=str(input_dir), output=str(output_dir))
         click.echo(json.dumps(d))
     else:
-        click.echo(summary_line(report, Path(input_dir), Path(output_dir)))
+        say.info(summary_line(report, Path(input_dir), Path(output_dir)))
     sys.stderr.flush()
     return 1 if report.failed else 0

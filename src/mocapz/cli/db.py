@@ -13,6 +13,8 @@ from typing import Any
 
 import click
 
+from mocapz.cli.codec_flags import CodecCommand, codec_flags, given
+from mocapz.codecs import get_codec
 from mocapz.errors import OptionError
 
 
@@ -31,25 +33,28 @@ def _weights(pairs: tuple[str, ...], weights_file: str | None) -> Any:
     return weights_file
 
 
-@click.command(name="compress-db")
+class LibraryCommand(CodecCommand):
+    """compress-db: its help lists the pattern codec's options (the only codec with a library mode)."""
+
+    def parse_args(self, ctx: click.Context, args: list[str]) -> list[str]:
+        ctx.meta["mocapz.codec"] = "patterns"
+        return click.Command.parse_args(self, ctx, args)
+
+
+@click.command(name="compress-db", cls=LibraryCommand)
 @click.argument("inputs", nargs=-1, required=True, type=click.Path(path_type=Path))
 @click.option("-o", "--output", type=click.Path(path_type=Path), required=True, help="output LIBRARY.mczdb")
 @click.option("-f", "--force", is_flag=True, help="overwrite an existing output")
 @click.option("--json", "as_json", is_flag=True, help="print one JSON object")
-@click.option("--max-arms", default=None, help="target ARMS for every clip, file units or with a unit (6.5mm)")
-@click.option("--max-distortion", type=float, default=None, help="target distortion_pct for every clip")
-@click.option("--theta", type=float, default=None, help="Algorithm 1 key-frame threshold, fraction of the ADDH")
-@click.option("--tolerance", type=float, default=None, help="clustering threshold (MaxError), fraction of the ADDH")
-@click.option("--bits", type=int, default=None, help="quantisation bits of the pattern deltas")
-@click.option("--hierarchy", default=None, help="JSON file giving the body-part hierarchy")
 @click.option("--weight", "weight_pairs", multiple=True, help="marker weight LABEL=VALUE (repeatable)")
-@click.option("--weights", "weights_file", default=None, help="JSON file of per-marker weights")
 @click.option("-j", "--jobs", type=click.IntRange(min=1), default=1, show_default=True,
               help="worker processes reading the clips")
 @click.option("--scheduler", default=None, metavar="ADDRESS",
               help="read the clips on a Dask cluster (tcp://host:8786, or 'local')")
+@click.option("--codec", default="patterns", show_default=True, help="the codec (only patterns has a library mode)")
+@codec_flags("patterns")
 def compress_db(inputs: tuple[Path, ...], output: Path, force: bool, as_json: bool, weight_pairs: tuple[str, ...],
-                weights_file: str | None, jobs: int, scheduler: str | None, **codec_options: Any) -> None:
+                jobs: int, scheduler: str | None, codec: str, **codec_options: Any) -> None:
     """Compress INPUT files (.bvh, .amc, .c3d, .trc) or folders of them into one .mczdb library with shared
     pattern databases. Clips are read in parallel (--jobs / --scheduler); the databases are built over all
     of them. A clip that cannot be read is reported and left out (exit code 1)."""
@@ -61,12 +66,12 @@ def compress_db(inputs: tuple[Path, ...], output: Path, force: bool, as_json: bo
     from mocapz.parallel.discover import discover
     from mocapz.parallel.load import load_many
 
+    if get_codec(codec).name != "patterns":
+        raise OptionError(f"compress-db: the {codec} codec has no library mode (only patterns has)")
     if output.suffix.lower() != ".mczdb":
         raise OptionError(f"{output}: a library file must end in .mczdb")
-    options = {k: v for k, v in codec_options.items() if v is not None}
-    w = _weights(weight_pairs, weights_file)
-    if w is not None:
-        options["weights"] = w
+    w = _weights(weight_pairs, codec_options.pop("weights", None))
+    options = get_codec("patterns").validate({**given(codec_options), "weights": w})
     paths: list[Path] = []
     for p in inputs:
         paths += discover(p) if p.is_dir() else [p]

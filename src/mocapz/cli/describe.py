@@ -34,7 +34,8 @@ def describe(path: Path) -> dict[str, Any]:
 
         return describe_library(path)
     if suffix == ".mcz":
-        from mocapz.api import decompress, read_container
+        from mocapz.api import read_container
+        from mocapz.files import open_motion
 
         data = path.read_bytes()
         box, _ = read_container(data, path)
@@ -42,7 +43,7 @@ def describe(path: Path) -> dict[str, Any]:
              "codec_version": box.codec_version,
              "sections": [f"{k}={len(v)}B" for k, v in box.sections.items()],
              "layout_bytes": len(box.layout)}
-        motion = decompress(data, path)
+        motion = open_motion(path).motion
         d.update(describe_motion(motion))
         d["ratio"] = motion.raw_bytes / len(data)
         return d

@@ -45,25 +45,11 @@ def discover(input_dir: str | os.PathLike[str]) -> list[Path]:
 def plan(input_dir: str | os.PathLike[str], output_dir: str | os.PathLike[str]) -> list[ClipJob]:
     """The clips of ``input_dir`` (see :func:`discover`) and the ``.mcz`` file each is written to.
 
-    ``a/b/walk.bvh`` goes to ``OUTDIR/a/b/walk.mcz``. When two inputs of one folder share a stem
-    (``walk.bvh`` and ``walk.c3d``), both keep their extension instead (``walk.bvh.mcz``, ``walk.c3d.mcz``),
-    so no output is written twice; the rule depends only on the file names, so it is deterministic.
+    ``a/b/walk.bvh`` goes to ``OUTDIR/a/b/walk.bvh.mcz``, as ``mocapz compress walk.bvh`` names it, so
+    ``walk.bvh`` and ``walk.c3d`` never share an output and ``decompress`` restores the input names.
     """
     root = Path(input_dir).resolve()
     out_root = Path(output_dir).resolve()
     rels = [p.relative_to(root) for p in discover(root)]
-    stems: dict[Path, int] = {}
-    for rel in rels:
-        key = rel.with_suffix(OUTPUT_SUFFIX)
-        stems[key] = stems.get(key, 0) + 1
-    jobs: list[ClipJob] = []
-    seen: set[Path] = set()
-    for i, rel in enumerate(rels):
-        out = rel.with_suffix(OUTPUT_SUFFIX)
-        if stems[out] > 1:
-            out = rel.parent / (rel.name + OUTPUT_SUFFIX)
-        if out in seen:
-            raise MocapzError(f"{root / rel}: two inputs map to the same output {out_root / out}")
-        seen.add(out)
-        jobs.append(ClipJob(i, rel.as_posix(), str(root / rel), str(out_root / out)))
-    return jobs
+    return [ClipJob(i, rel.as_posix(), str(root / rel), str(out_root / rel.parent / (rel.name + OUTPUT_SUFFIX)))
+            for i, rel in enumerate(rels)]

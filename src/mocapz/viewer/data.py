@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-from mocapz.errors import FormatError, MocapzError, OptionError
+from mocapz.errors import MocapzError, OptionError
 from mocapz.metrics.figures import bone_pairs, evaluate, point_errors, positions_pair, size_figures, up_axis
 from mocapz.model.motion import AnyMotion, MarkerMotion, Motion
 
@@ -105,20 +105,12 @@ def load_motion(path: Path, asf: Path | None = None) -> tuple[AnyMotion, dict[st
 
     The second value holds ``compressed_bytes`` and ``codec`` for a ``.mcz``, else nothing.
     """
-    from mocapz.io import load
+    from mocapz.files import open_motion
 
-    path = Path(path)
-    if path.suffix.lower() != ".mcz":
-        return (load(path, asf) if asf else load(path)), {}
-    from mocapz.api import decompress, read_container
-
-    if not path.exists():
-        raise FormatError(path, "no such file")
-    if path.is_dir():
-        raise FormatError(path, "is a folder, not a file")
-    data = path.read_bytes()
-    box, _ = read_container(data, path)
-    return decompress(data, path), {"compressed_bytes": len(data), "codec": box.codec}
+    opened = open_motion(path, asf)
+    if opened.codec is None:
+        return opened.motion, {}
+    return opened.motion, {"compressed_bytes": opened.compressed_bytes, "codec": opened.codec}
 
 
 # ---------------------------------------------------------------------------------------------- geometry

@@ -52,7 +52,7 @@ def values_of(motion: AnyMotion) -> Values:
         if rot.any() and len(x) > 1:
             x[:, rot] = np.unwrap(x[:, rot], period=period, axis=0)
         return Values(x, None, rot, period)
-    pos = motion.positions.reshape(motion.n_frames, -1)
+    pos = motion.positions.reshape(motion.n_frames, 3 * motion.n_markers)
     missing = motion.missing
     gaps = missing if missing.any() else None
     x = fill_gaps(pos, np.repeat(missing, 3, axis=1)) if gaps is not None else pos.copy()

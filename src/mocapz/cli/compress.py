@@ -1,0 +1,147 @@
+"""``mocapz compress INPUT... [-o OUTPUT] [--codec NAME] [codec options]``.
+
+* one file: ``clip.bvh`` -> ``clip.bvh.mcz`` beside it, or ``-o`` names the output (``-o -`` / ``-c``:
+  standard output); ``-`` as INPUT reads standard input (format sniffed, or ``--format``);
+* several files or folders: each to its default name, or under the folder ``-o`` names; a folder is
+  compressed clip by clip in parallel (:mod:`mocapz.cli.batch`).
+
+Options are checked and existing outputs found before any input is read. After compressing, the result is
+decoded and measured: the line printed (stderr) gives the verified figures and both ratios.
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+import click
+
+from mocapz.cli.codec_flags import CodecCommand, check_codec_options, codec_flags
+from mocapz.cli.common import Say, cut, echo_json, fmt, frame_slice, message_flags, range_flags, unit_flag, with_unit
+from mocapz.cli.outputs import check_outputs, write_output
+from mocapz.errors import MocapzError, OptionError
+from mocapz.files import STDIN_NAME, compressed_name, load_bytes, sniff
+from mocapz.io import MOTION_EXTENSIONS
+
+FORMATS = tuple(e.lstrip(".") for e in MOTION_EXTENSIONS)
+
+
+@click.command(cls=CodecCommand)
+@click.argument("inputs", nargs=-1, required=True, type=click.Path(path_type=Path, allow_dash=True))
+@click.option("-o", "--output", type=click.Path(path_type=Path, allow_dash=True), default=None,
+              help="output .mcz (one input; - for stdout), or output folder (several inputs or a folder)")
+@click.option("-c", "--stdout", "to_stdout", is_flag=True, help="write the .mcz to standard output")
+@click.option("--codec", default="lossless", show_default=True, help="codec name, any case (list below)")
+@click.option("--format", "fmt_name", type=click.Choice(FORMATS, case_sensitive=False), default=None,
+              help="format of standard input (default: from its content)")
+@click.option("--asf", type=click.Path(path_type=Path), default=None, help="skeleton for an .amc input")
+@click.option("-f", "--force", is_flag=True, help="overwrite existing outputs")
+@click.option("--json", "as_json", is_flag=True, help="print one JSON object on stdout")
+@click.option("-j", "--jobs", type=click.IntRange(min=1), default=None,
+              help="folder INPUT: worker processes (default: one per CPU; 1: serial)")
+@click.option("--scheduler", default=None, metavar="ADDRESS",
+              help="folder INPUT: a Dask cluster (tcp://host:8786), or 'local' (needs mocapz[dask])")
+@range_flags
+@unit_flag
+@message_flags
+@codec_flags()
+def compress(inputs: tuple[Path, ...], output: Path | None, to_stdout: bool, codec: str, fmt_name: str | None,
+             asf: Path | None, force: bool, as_json: bool, jobs: int | None, scheduler: str | None,
+             frames: str | None, start: float | None, end: float | None, unit: str | None, quiet: bool,
+             verbose: bool, **params: Any) -> None:
+    """Compress motion files (.bvh, .amc, .c3d, .trc) or folders of them into .mcz files."""
+    info, options = check_codec_options(codec, params)
+    say = Say(quiet, verbose)
+    if to_stdout:
+        if output is not None and str(output) != "-":
+            raise OptionError("give -c or -o, not both")
+        output = Path("-")
+    folders = [p for p in inputs if str(p) != "-" and p.is_dir()]
+    if (jobs is not None or scheduler is not None) and not folders:
+        raise OptionError("--jobs and --scheduler apply when an INPUT is a folder")
+    if asf is not None and (len(inputs) > 1 or folders):
+        raise OptionError("--asf applies to one .amc file; in a folder each .amc uses the .asf beside it")
+    many = len(inputs) > 1 or bool(folders)
+    if many and output is not None and str(output) == "-":
+        raise OptionError("standard output takes one input, not several or a folder")
+    if sum(str(p) == "-" for p in inputs) > 1:
+        raise OptionError("standard input (-) can be read once")
+    targets = [_output_for(p, output, many) for p in inputs if p not in folders]
+    check_outputs(targets, force, folders_made=many and output is not None)
+    if many and output is not None:
+        output.mkdir(parents=True, exist_ok=True)
+    results, failed = [], 0
+    for path in inputs:
+        if path in folders:
+            from mocapz.cli.batch import run_batch_compress
+
+            out_dir = output / path.name if (output is not None and len(inputs) > 1) else (output or path)
+            failed += run_batch_compress(path, out_dir, info.name, options, jobs, scheduler, force, as_json, say)
+            continue
+        try:
+            results.append(_one(path, _output_for(path, output, many), info.name, options, asf, fmt_name,
+                                (frames, start, end), unit, force, say))
+        except MocapzError as exc:
+            if not many:
+                raise
+            failed += 1
+            click.echo(f"mocapz: error: {exc}", err=True)
+    if as_json and results:
+        echo_json(results[0] if len(results) == 1 and not many else {"files": results})
+    if failed:
+        sys.exit(1)
+
+
+def _output_for(path: Path, output: Path | None, many: bool) -> Path:
+    if str(path) == "-":
+        if output is None:
+            raise OptionError("standard input needs -o FILE (or -o - / -c for standard output)")
+        return output if not many else output / "stdin.mcz"
+    if output is None:
+        return compressed_name(path)
+    return output / compressed_name(path).name if many else output
+
+
+def _one(path: Path, out: Path, codec: str, options: dict[str, Any], asf: Path | None, fmt_name: str | None,
+         rng: tuple[str | None, float | None, float | None], unit: str | None, force: bool,
+         say: Say) -> dict[str, Any]:
+    """Compress one input to ``out``; return the figures printed (and given with --json)."""
+    from mocapz.api import compress as do_compress
+    from mocapz.api import decompress
+    from mocapz.io import load
+    from mocapz.metrics.figures import evaluate, size_figures
+
+    name = STDIN_NAME if str(path) == "-" else str(path)
+    if str(path) == "-":
+        data_in = click.get_binary_stream("stdin").read()
+        ext = f".{fmt_name.lower()}" if fmt_name else sniff(data_in)
+        motion = load_bytes(data_in, ext)
+        source_bytes: int | None = len(data_in)
+    else:
+        motion = load(path, asf) if asf else load(path)
+        source_bytes = path.stat().st_size
+    motion = with_unit(cut(motion, frame_slice(*rng, motion.frame_rate, motion.n_frames)), unit)
+    t0 = time.perf_counter()
+    with say.progress(f"{name}: {codec}, {motion.n_frames} frames"):
+        try:
+            data = do_compress(motion, codec=codec, **options)
+        except MocapzError as exc:
+            raise exc.at(name) from None
+        elapsed = time.perf_counter() - t0
+        rep = evaluate(motion, decompress(data))
+    write_output(out, data, force)
+    figs: dict[str, Any] = size_figures(motion, len(data), source_bytes)
+    figs.update(input=name, output=str(out), codec=codec, frames=motion.n_frames,
+                encode_ms_per_frame=1000 * elapsed / max(motion.n_frames, 1),
+                distortion_pct=rep.distortion_pct, max_err=rep.max_err, max_err_cm=rep.max_err_cm, arms=rep.arms,
+                arms_cm=rep.arms_cm)
+    cm = rep.unit_cm is not None
+    err = (f"max error {fmt(rep.max_err_cm, ' cm')}, ARMS {fmt(rep.arms_cm, ' cm')}" if cm
+           else f"max error {fmt(rep.max_err)}, ARMS {fmt(rep.arms)} (file units)")
+    say.info(f"{name} -> {out}: {figs['compressed_bytes']} bytes, ratio {fmt(figs['ratio'])} to float32, "
+             f"{fmt(figs['ratio_file'])} to the file; verified: d {rep.distortion_pct:.4g} %, {err}; "
+             f"{codec}, {elapsed:.2f} s")
+    say.detail(f"  {motion.n_frames} frames at {motion.frame_rate:g} Hz, {figs['encode_ms_per_frame']:.3f} ms/frame")
+    return figs
