@@ -148,13 +148,13 @@ def decompress(input: Path, output: Path, clip: str | None, force: bool, as_json
     data = _read_bytes(input)
     t0 = time.perf_counter()
     if clip is None and input.suffix.lower() == ".mczdb":
-        from mocapz.library import Library
+        from mocapz.format.library import Library
 
         names = [c["name"] if isinstance(c, dict) else str(c) for c in Library.from_bytes(data, input).index["clips"]]
         raise MocapzError(f"{input}: a library holds several clips; choose one with --clip "
                           f"({', '.join(names[:10])}{', ...' if len(names) > 10 else ''})")
     if clip is not None:
-        from mocapz.library import read_clip
+        from mocapz.libraries import read_clip
 
         motion = read_clip(data, clip, input)
     else:
