@@ -32,7 +32,8 @@ import mocapz
 from mocapz.api import read_container
 from mocapz.codecs.patterns.quantise import decode_patterns
 from mocapz.codecs.patterns.segments import decode_segments
-from mocapz.library import Library, compress_library, read_clip
+from mocapz.format.library import Library
+from mocapz.libraries import compress_library, read_clip
 from mocapz.model.motion import MarkerMotion
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -9,11 +9,14 @@ from conftest import data_path
 
 from mocapz.cli.db import compress_db
 from mocapz.cli.main import cli
+from mocapz.codecs.patterns.library import Group, code_groups
 from mocapz.codecs.patterns.options import settings_from
 from mocapz.codecs.patterns.prepare import prepare
+from mocapz.codecs.patterns.segments import decode_segments, encode_segments
 from mocapz.errors import FormatError, MocapzError, OptionError
+from mocapz.format.library import Library
 from mocapz.io import load
-from mocapz.library import Library, _build, compress_library, describe_library, read_clip
+from mocapz.libraries import assemble, compress_library, describe_library, read_clip
 from mocapz.metrics.figures import evaluate
 
 CLIPS = ["cmu/bvh/09_06.bvh", "cmu/bvh/09_01.bvh", "cmu/bvh/02_03.bvh"]
@@ -27,7 +30,9 @@ def runs() -> list:
 def test_one_clip_decoded_alone_equals_library_decoding(runs) -> None:
     prep = prepare(runs[0])
     settings = settings_from({"bits": 3, "tolerance": 0.05})
-    lib, decoded = _build(runs, [m.name for m in runs], [([0, 1, 2], prep)], settings)
+    coded = code_groups(runs, [Group([0, 1, 2], prep)], settings)
+    lib = assemble(runs, [m.name for m in runs], coded, settings)
+    decoded = coded[0].decoded
     data = lib.to_bytes()
     # drop every other clip's own streams: the chosen clip must not need them
     alone = Library(lib.index, {k: v for k, v in lib.sections.items() if not k.startswith(("c0.", "c2."))})
@@ -71,6 +76,36 @@ def test_target_holds_for_every_clip(runs) -> None:
     data = compress_library(runs[:2], max_distortion=1.5)
     for m in runs[:2]:
         assert evaluate(m, read_clip(data, m.name)).distortion_pct <= 1.5
+
+
+def test_single_pattern_database_with_shared_prior_round_trips() -> None:
+    """A node whose database has one pattern (Gait.trc's sparse markers) used to crash the range coder."""
+    labels, lengths = np.zeros(4, dtype=np.int64), np.array([256, 183, 1, 47])
+    data = encode_segments(labels, lengths, 1, np.array([4]))
+    back = decode_segments(data, 1, np.array([4]))
+    assert np.array_equal(back[0], labels) and np.array_equal(back[1], lengths)
+
+
+def test_library_mixing_skeletal_clips_and_a_trc_marker_clip(runs) -> None:
+    trc = load(data_path("other/markers/btkdata/Gait.trc"))
+    data = compress_library([runs[0], trc])
+    assert describe_library_bytes(data)["clips"] == ["09_06", trc.name]
+    back = read_clip(data, trc.name)
+    assert np.array_equal(back.missing, trc.missing)
+    assert evaluate(trc, back).arms_cm < 2.0
+    assert evaluate(runs[0], read_clip(data, "09_06")).arms_cm < 2.0
+
+
+def test_target_length_is_resolved_in_each_clips_own_units(runs) -> None:
+    """A length target with a unit (2cm) holds for a BVH clip (CMU units) and a marker clip (mm) whatever
+    their order (the search used to apply the first clip's file-unit bound to every clip)."""
+    m = load(data_path("cmu/c3d/01_01.c3d"))
+    markers = m.with_positions(m.positions[:400])
+    markers.name = "markers"
+    for clips in ([runs[0], markers], [markers, runs[0]]):
+        data = compress_library(clips, max_arms="2cm")
+        for clip in clips:
+            assert evaluate(clip, read_clip(data, clip.name)).arms_cm <= 2.0
 
 
 def test_bad_libraries_and_clips(tmp_path, runs) -> None:

@@ -62,7 +62,7 @@ def compress_db(inputs: tuple[Path, ...], output: Path, force: bool, as_json: bo
 
     from mocapz.errors import MocapzError
     from mocapz.io.common import atomic_write
-    from mocapz.library import compress_library
+    from mocapz.libraries import compress_library
     from mocapz.parallel.discover import discover
     from mocapz.parallel.load import load_many
 

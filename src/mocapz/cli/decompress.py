@@ -135,11 +135,11 @@ def _output_for(path: Path, root: Path | None, output: Path | None, many: bool, 
 
 
 def _library_clip(data: bytes, path: Path, clip: str | None) -> Any:
-    from mocapz.library import Library, read_clip
+    from mocapz.format.library import Library
+    from mocapz.libraries import read_clip
 
     if clip is None:
-        index = Library.from_bytes(data, path).index["clips"]
-        names = [c["name"] if isinstance(c, dict) else str(c) for c in index]
+        names = Library.from_bytes(data, path).clip_names()
         raise OptionError(f"{path}: a library holds several clips; choose one with --clip "
                           f"({', '.join(names[:10])}{', ...' if len(names) > 10 else ''})")
     return read_clip(data, clip, path)

@@ -30,7 +30,7 @@ def describe(path: Path) -> dict[str, Any]:
         raise FormatError(path, "no such file")
     suffix = path.suffix.lower()
     if suffix == ".mczdb":
-        from mocapz.library import describe_library
+        from mocapz.libraries import describe_library
 
         return describe_library(path)
     if suffix == ".mcz":

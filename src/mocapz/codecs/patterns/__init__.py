@@ -2,7 +2,7 @@
 normalisation, adaptive K-means pattern databases, pattern-index coding, boundary smoothing.
 
 ``encode(motion, **options) -> sections`` and ``decode(sections, header) -> motion``; options in
-:mod:`.options`. Library mode (databases shared between clips) lives in :mod:`mocapz.library`.
+:mod:`.options`. Library mode (databases shared between clips) is :mod:`.library`.
 """
 
 from __future__ import annotations

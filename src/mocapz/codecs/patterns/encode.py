@@ -42,7 +42,7 @@ def encode(motion: AnyMotion, **options: Any) -> dict[str, bytes]:
     def check(sections: dict[str, bytes]) -> float:
         return target.score(metric.of_motion(decode(sections, ClipHeader.of(motion))))
 
-    return search(motion.name, [motion], settings, target, fixed, prep.addh, run, check)
+    return search(motion.name, [motion], settings, [target], fixed, prep.addh, run, check)
 
 
 def target_from(motion: AnyMotion, options: dict[str, Any]) -> Target | None:

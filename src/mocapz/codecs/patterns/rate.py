@@ -44,15 +44,15 @@ class Trial:
 Runner = Callable[[Settings], tuple[list[np.ndarray], Any, int]]
 
 
-def search(name: str, motions: list[AnyMotion], base: Settings, target: Target, fixed: set[str], addh: float,
-           run: Runner, check: Callable[[Any], float]) -> Any:
-    """Smallest payload meeting ``target`` on every clip.
+def search(name: str, motions: list[AnyMotion], base: Settings, targets: list[Target], fixed: set[str],
+           addh: float, run: Runner, check: Callable[[Any], float]) -> Any:
+    """Smallest payload meeting every clip's target.
 
     Args:
         name: what to call the data in errors.
         motions: the original clips.
         base: settings the user gave (``fixed`` names those not to search: ``tolerance``, ``bits``).
-        target: the target.
+        targets: per clip the target, in that clip's file units.
         addh: the length scale (for the first guess of the bits).
         run: ``settings -> (reconstruction per clip, payload, size in bytes)``.
         check: ``payload -> score`` measured by really decoding the payload.
@@ -65,8 +65,8 @@ def search(name: str, motions: list[AnyMotion], base: Settings, target: Target, 
         if key not in cache:
             s = replace(base, bits=bits, tol=tol)
             decoded, payload, size = run(s)
-            score = max((target.score(em.of_motion(as_motion(m, d)))
-                         for em, m, d in zip(metrics, motions, decoded, strict=True)), default=0.0)
+            score = max((t.score(em.of_motion(as_motion(m, d)))
+                         for t, em, m, d in zip(targets, metrics, motions, decoded, strict=True)), default=0.0)
             cache[key] = Trial(s, score / (1.0 - MARGIN), size, payload)
         return cache[key]
 
@@ -76,7 +76,7 @@ def search(name: str, motions: list[AnyMotion], base: Settings, target: Target, 
             return t if t.score <= 1 else None
         return _solve_tol(lambda tol: trial(bits, tol), guess)
 
-    bits0 = base.bits if "bits" in fixed else _initial_bits(target, addh)
+    bits0 = base.bits if "bits" in fixed else _initial_bits(targets[0], addh)
     guess = base.tol if "tolerance" in fixed else 0.05
     best = best_for(bits0, guess)
     if "bits" not in fixed:
@@ -91,12 +91,12 @@ def search(name: str, motions: list[AnyMotion], base: Settings, target: Target, 
                 if cand is None or cand.size >= best.size:
                     break
                 best, b = cand, b + direction
+    wanted = "; ".join(dict.fromkeys(t.describe() for t in targets))
     if best is None:
-        raise TargetError(f"{name}: the patterns codec cannot meet the target ({target.describe()}) "
-                          f"with these options")
+        raise TargetError(f"{name}: the patterns codec cannot meet the target ({wanted}) with these options")
     measured = check(best.payload)
     if measured > 1.0:
-        raise TargetError(f"{name}: decoded result misses the target ({target.describe()}; "
+        raise TargetError(f"{name}: decoded result misses the target ({wanted}; "
                           f"measured {measured:.4f} of the allowed)")
     return best.payload
 

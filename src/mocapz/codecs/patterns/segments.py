@@ -53,6 +53,9 @@ class _Labels:
     def __init__(self, k: int, prior: np.ndarray | None) -> None:
         self.escape = prior is None
         base = np.zeros(k) if prior is None else np.asarray(prior, dtype=np.float64) + 0.5
+        if not self.escape and k == 1:
+            # the range coder takes no one-symbol alphabet: a never-used second symbol (costs ~0 bits)
+            base = np.append(base, 0.0)
         self.counts = np.concatenate([[1.0], base]) if self.escape else base
         self.distinct = 0
 
