@@ -5,7 +5,7 @@ BIN := $(VENV)/bin
 DATA ?= ../shared/data
 STAMP := $(VENV)/.installed
 
-.PHONY: demo test lint bench clean
+.PHONY: demo test test-fast lint bench clean
 
 $(STAMP): pyproject.toml
 	test -x $(BIN)/python || $(PY) -m venv $(VENV)
@@ -23,14 +23,19 @@ demo: $(STAMP)
 	$(BIN)/mocapz eval $(DATA)/cmu/bvh/09_06.bvh out/09_06.pga.mcz
 
 test: $(STAMP)
-	$(BIN)/ruff check src tests bench
-	$(BIN)/python -m pytest
+	$(BIN)/ruff check src tests scripts
+	$(BIN)/python -m pytest -n 2
+
+# everything but the tests marked slow (rate-control searches, browser, Dask, CLI conventions): under a minute
+test-fast: $(STAMP)
+	$(BIN)/ruff check src tests scripts
+	$(BIN)/python -m pytest -n 2 -m "not slow"
 
 bench: $(STAMP)
-	$(BIN)/python bench/lossless.py
-	$(BIN)/python bench/pga.py --out docs/benchmarks/pga.md
-	$(BIN)/python bench/patterns.py
-	$(BIN)/python bench/run_all.py
+	$(BIN)/python scripts/lossless.py
+	$(BIN)/python scripts/pga.py --out docs/benchmarks/pga.md
+	$(BIN)/python scripts/patterns.py
+	$(BIN)/python scripts/run_all.py
 
 clean:
 	rm -rf $(VENV) out .pytest_cache

@@ -92,6 +92,7 @@ def test_serial_and_process_pool_write_identical_bytes(library: Path, tmp_path: 
     assert np.array_equal(back.channels, mocapz.load(library / "run" / "02_03.bvh").channels)
 
 
+@pytest.mark.slow
 def test_dask_local_cluster_writes_identical_bytes(library: Path, tmp_path: Path) -> None:
     pytest.importorskip("distributed", reason="dask[distributed] is not installed (pip install 'mocapz[dask]')")
     for codec in ("lossless", "quant"):

@@ -72,6 +72,7 @@ def test_report_equals_compress_decompress_eval(tmp_path: Path, codec: str, sett
 
 
 # ---------------------------------------------------------------- a quick run through the command
+@pytest.mark.slow
 def test_quick_run_two_clips(tmp_path: Path) -> None:
     out = tmp_path / "bench"
     t0 = time.perf_counter()

@@ -18,6 +18,8 @@ from mocapz.codecs import all_codecs, codec_names
 from mocapz.codecs.options import options_markdown
 from mocapz.io.bvh import read_bvh
 
+pytestmark = pytest.mark.slow  # subprocesses and a browser: make test, not make test-fast
+
 DOCS = Path(__file__).resolve().parents[1] / "docs" / "options.md"
 C3D = "cmu/c3d/01_01.c3d"
 

@@ -357,6 +357,7 @@ def test_generous_target_is_met(codec: str, kind: str, target: dict[str, Any]) -
     assert_target_met(motion, decoded, target)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(("codec", "kind"), LOSSY_CASES)
 def test_tight_target_is_met_or_refused(codec: str, kind: str) -> None:
     motion = clip(kind)

@@ -118,6 +118,7 @@ def test_lifting_round_trip(run_clip: mocapz.Motion, lod: int) -> None:
         assert err.max() < 1e-4
 
 
+@pytest.mark.slow
 def test_acceptance_09_06_rate_control(run_clip: mocapz.Motion) -> None:
     data = mocapz.compress(run_clip, codec="pga", max_distortion=0.36)
     back = mocapz.decompress(data)
@@ -131,6 +132,7 @@ def test_acceptance_09_06_rate_control(run_clip: mocapz.Motion) -> None:
     ("cmu/bvh/02_01.bvh", 240, {"max_error": "3cm"}),
     ("cmu/bvh/05_02.bvh", 240, {"max_distortion": 1.0}),
 ])
+@pytest.mark.slow
 def test_rate_control_meets_targets(clip: str, frames: int, target: dict) -> None:
     m = mocapz.load(data_path(clip)).slice(0, frames)
     back = mocapz.decompress(mocapz.compress(m, codec="pga", **target))

@@ -39,6 +39,8 @@ from mocapz.model.motion import MarkerMotion
 from mocapz.viewer import build_page, prepare_view, render_animation, render_frame, write_page
 from mocapz.viewer.page import page_data
 
+pytestmark = pytest.mark.slow  # subprocesses and a browser: make test, not make test-fast
+
 RUN = "cmu/bvh/09_06.bvh"
 MOCAPZ = shutil.which("mocapz", path=str(Path(sys.executable).parent)) or str(Path(sys.executable).parent / "mocapz")
 

@@ -6,7 +6,7 @@ geodesics, levels of detail, ratio, distortion_pct, max_err (cm), decode and enc
 values beside them, and in the same run the ratio at equal (or lower) distortion of the lossless codec,
 subsampling with spline interpolation, and global PCA (all measured through the container, METRICS.md).
 
-Usage: python bench/pga.py [--quick] [--out docs/benchmarks/pga.md]
+Usage: python scripts/pga.py [--quick] [--out docs/benchmarks/pga.md]
 """
 
 from __future__ import annotations
@@ -132,7 +132,7 @@ def main() -> None:
     lines = [
         "# PGA codec: the paper's Table 2 on the shared CMU clips",
         "",
-        f"Command: `python bench/pga.py{' --quick' if args.quick else ''}` (mocapz {mocapz.__version__}, "
+        f"Command: `python scripts/pga.py{' --quick' if args.quick else ''}` (mocapz {mocapz.__version__}, "
         f"{platform.machine()}, {platform.python_version()}, single process). Rate control at the paper's "
         "distortion for each clip (`--max-distortion d`); every figure measured through the container as "
         "in ../shared/METRICS.md (d over all joints and end sites, max error in cm). *whole* = the file as "

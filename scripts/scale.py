@@ -15,7 +15,7 @@ of the wall time, as for a user. Its peak memory is sampled (every 0.2 s) over t
 (coordinator, forkserver or nanny processes, workers), and the outputs of each mode are hashed: the report
 says whether serial, --jobs 2 and Dask wrote identical bytes.
 
-Usage: python bench/scale.py [--size-gb 1.0] [--jobs 2] [--repeats 3] [--codecs lossless,quant]
+Usage: python scripts/scale.py [--size-gb 1.0] [--jobs 2] [--repeats 3] [--codecs lossless,quant]
                              [--workdir DIR] [--keep] [--quick] [--out docs/benchmarks/scale.md]
 """
 
@@ -194,7 +194,7 @@ def _command(argv: list[str]) -> str:
             skip = True
         elif not a.startswith(("--out=", "--json=")):
             out.append(a)
-    return " ".join(["python bench/scale.py", *out])
+    return " ".join(["python scripts/scale.py", *out])
 
 
 def _summary(label: str, rows: list[dict[str, Any]], codecs: list[str]) -> list[str]:

@@ -1,6 +1,6 @@
 """Lossless codec ratio per clip over the CMU BVH clips of ../shared/data (METRICS.md figures).
 
-Usage: python bench/lossless.py [DATA_DIR]
+Usage: python scripts/lossless.py [DATA_DIR]
 """
 
 from __future__ import annotations

@@ -5,9 +5,9 @@ second temporal differences of the integer channel values, with its histogram
 (a) per clip and per channel, histograms not counted (an overfit bound: few samples, many values),
 (b) per channel pooled over the whole corpus (a model the decoder gets for free),
 (c) one histogram pooled over everything.
-Compare with `bench/lossless.py` (the real codec, every byte counted).
+Compare with `scripts/lossless.py` (the real codec, every byte counted).
 
-Usage: python bench/lossless_bound.py [DATA_DIR]
+Usage: python scripts/lossless_bound.py [DATA_DIR]
 """
 
 from __future__ import annotations
