@@ -9,7 +9,7 @@ import pytest
 from conftest import data_path
 
 from mocapz.api import compress, decompress
-from mocapz.codecs.patterns.gaps import decode_mask, encode_mask
+from mocapz.codecs.gaps import decode_mask, encode_mask
 from mocapz.codecs.patterns.hierarchy import Hierarchy
 from mocapz.codecs.patterns.kmeans import AVE, MAX, adaptive_kmeans, sample_errors
 from mocapz.codecs.patterns.marker_tree import build_marker_hierarchy

@@ -18,8 +18,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from mocapz.codecs.gaps import fill_linear, pack_mask, unpack_mask
 from mocapz.errors import FormatError
-from mocapz.format.entropy import pack_uint64, read_uvarint, unpack_uint64, write_uvarint
+from mocapz.format.entropy import read_uvarint, write_uvarint
 from mocapz.model.header import ClipHeader
 from mocapz.model.motion import AnyMotion, Motion
 
@@ -55,21 +56,8 @@ def values_of(motion: AnyMotion) -> Values:
     pos = motion.positions.reshape(motion.n_frames, 3 * motion.n_markers)
     missing = motion.missing
     gaps = missing if missing.any() else None
-    x = fill_gaps(pos, np.repeat(missing, 3, axis=1)) if gaps is not None else pos.copy()
+    x = fill_linear(pos, np.repeat(missing, 3, axis=1)) if gaps is not None else pos.copy()
     return Values(x, gaps, np.zeros(x.shape[1], dtype=bool), 0.0)
-
-
-def fill_gaps(x: np.ndarray, missing: np.ndarray) -> np.ndarray:
-    """Fill missing samples ``(frames, columns)`` per column by linear interpolation in time.
-
-    Samples before the first / after the last observed one take its value; a column never observed is 0.
-    """
-    out = np.array(x, dtype=np.float64, copy=True)
-    t = np.arange(len(out), dtype=np.float64)
-    for c in np.flatnonzero(missing.any(axis=0)):
-        ok = ~missing[:, c]
-        out[:, c] = np.interp(t, t[ok], out[ok, c]) if ok.any() else 0.0
-    return out
 
 
 def layout_columns(header: ClipHeader) -> tuple[int, np.ndarray, float]:
@@ -113,19 +101,14 @@ def finish(header: ClipHeader, x: np.ndarray, gaps: np.ndarray | None, round_dec
 # ---------------------------------------------------------------- sections
 def gaps_bytes(gaps: np.ndarray) -> bytes:
     """The gap mask ``(frames, markers)`` as packed bits, zstd-coded."""
-    return pack_uint64(np.packbits(gaps.ravel()).astype(np.uint64))
+    return pack_mask(gaps)
 
 
 def gaps_from(sections: dict[str, bytes], header: ClipHeader) -> np.ndarray | None:
     """The gap mask ``(frames, markers)`` stored by :func:`gaps_bytes`, or ``None``."""
     if "gaps" not in sections or header.skeleton is not None:
         return None
-    frames, markers = header.frames, len(header.labels)
-    bits = unpack_uint64(sections["gaps"]).astype(np.uint8)
-    flat = np.unpackbits(bits)
-    if flat.size < frames * markers:
-        raise FormatError(None, "corrupted gap mask")
-    return flat[: frames * markers].astype(bool).reshape(frames, markers)
+    return unpack_mask(sections["gaps"], (header.frames, len(header.labels)))
 
 
 def f32_bytes(a: np.ndarray) -> bytes:

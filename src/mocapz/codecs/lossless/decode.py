@@ -6,6 +6,7 @@ from typing import Any
 
 import numpy as np
 
+from mocapz.codecs.gaps import unpack_mask
 from mocapz.codecs.lossless.integers import REP_DECIMAL, REPRESENTATIONS, from_integers
 from mocapz.codecs.lossless.predict import cross_term, predictor_columns
 from mocapz.errors import FormatError
@@ -41,8 +42,7 @@ def decode(sections: dict[str, bytes], header: ClipHeader) -> Any:
         decimals = np.broadcast_to(np.asarray(dec, dtype=np.int64), (cols,))
     values = from_integers(rep, x, decimals)
     if "gaps" in sections:
-        bits = unpack_uint64(sections["gaps"]).astype(np.uint8)
-        gaps = np.unpackbits(bits)[: frames * cols].astype(bool).reshape(frames, cols)
+        gaps = unpack_mask(sections["gaps"], (frames, cols))
         values = np.where(gaps, np.nan, values)
     return header.motion(values.reshape(header.value_shape))
 

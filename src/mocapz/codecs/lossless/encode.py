@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from mocapz.codecs.gaps import fill_hold, pack_mask
 from mocapz.codecs.lossless.integers import to_integers
 from mocapz.codecs.lossless.predict import cross_term, fit_coef, predictor_columns
 from mocapz.format.entropy import encode_int_matrix, pack_uint64, zigzag
@@ -25,17 +26,7 @@ def value_matrix(motion: AnyMotion) -> tuple[np.ndarray, np.ndarray | None]:
     gaps = ~np.isfinite(pos)
     if not gaps.any():
         return pos, None
-    filled = pos.copy()
-    for c in np.flatnonzero(gaps.any(axis=0)):
-        col = filled[:, c]
-        ok = np.flatnonzero(~gaps[:, c])
-        if ok.size == 0:
-            col[:] = 0.0
-            continue
-        idx = np.maximum.accumulate(np.where(~gaps[:, c], np.arange(len(col)), -1))
-        idx[idx < 0] = ok[0]
-        filled[:, c] = col[idx]
-    return filled, gaps
+    return fill_hold(pos, gaps), gaps
 
 
 def encode(motion: AnyMotion, **options: object) -> dict[str, bytes]:
@@ -52,7 +43,7 @@ def encode(motion: AnyMotion, **options: object) -> dict[str, bytes]:
     frames, cols = x.shape
     sections: dict[str, bytes] = {"rep": bytes([rep])}
     if gaps is not None:
-        sections["gaps"] = pack_uint64(np.packbits(gaps.ravel()).astype(np.uint64))
+        sections["gaps"] = pack_mask(gaps)
     if frames == 0:
         return sections
     const = (x == x[0]).all(axis=0)

@@ -14,8 +14,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from mocapz.codecs.gaps import encode_mask, fill_positions
 from mocapz.codecs.patterns.decode import params_bytes
-from mocapz.codecs.patterns.gaps import encode_mask, fill_gaps
 from mocapz.codecs.patterns.heading import measure_yaw, rotate, up_axis
 from mocapz.codecs.patterns.hierarchy import Hierarchy
 from mocapz.codecs.patterns.pipeline import NodeCoded, NodeSeries, Settings, code_node
@@ -78,7 +78,7 @@ def _finish(nodes: list[NodeCoded | None], sections: list[dict[str, bytes]], dec
 
 def _code_markers(motions: list[MarkerMotion], hier: Hierarchy, settings: Settings, weights: np.ndarray,
                   addh: float, shared_prior: bool) -> CodedClips:
-    filled = [fill_gaps(m.positions) for m in motions]
+    filled = [fill_positions(m.positions) for m in motions]
     observed = [~m.missing for m in motions]
     root = hier.nodes[0].reference
     sections: list[dict[str, bytes]] = []

@@ -6,7 +6,7 @@ from typing import Any
 
 import numpy as np
 
-from mocapz.codecs.patterns.gaps import decode_mask
+from mocapz.codecs.gaps import decode_mask
 from mocapz.codecs.patterns.heading import rotate
 from mocapz.codecs.patterns.hierarchy import Hierarchy
 from mocapz.codecs.patterns.pipeline import reconstruct
