@@ -100,3 +100,9 @@ def test_layers() -> None:
         if name.startswith(("mocapz.io", "mocapz.model", "mocapz.format")):
             bad = {d for d in deps if d.startswith(("mocapz.codecs", "mocapz.api", "mocapz.cli"))}
             assert not bad, f"{name} imports {sorted(bad)}"
+
+
+def test_no_module_over_400_lines() -> None:
+    counts = {name: len(f.read_text(encoding="utf-8").splitlines()) for name, f in _modules().items()}
+    long = {name: n for name, n in counts.items() if n > MAX_LINES}
+    assert not long, f"modules over {MAX_LINES} lines: {long}"
