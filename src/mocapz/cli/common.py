@@ -17,7 +17,7 @@ from typing import Any
 
 import click
 
-from mocapz.errors import OptionError
+from mocapz.errors import MocapzError, OptionError
 from mocapz.model.motion import UNIT_CM, AnyMotion, MarkerMotion, Motion
 
 #: ``--unit`` choices, in centimetres (``cmu``: the CMU skeleton unit, 2.54/0.45 cm)
@@ -53,6 +53,29 @@ class Say:
         with Progress(*columns, console=Console(stderr=True), transient=True) as bar:
             task = bar.add_task(label, total=total)
             yield lambda n=1: bar.advance(task, n)
+
+
+def each_input(items: list[Any], work: Callable[[Any], dict[str, Any]], many: bool) -> tuple[list[dict[str, Any]], int]:
+    """Run ``work`` on every input: with one input its error propagates (exit 1); with several each failure
+    is one line on stderr and the others go on. Returns the results and the number of failures."""
+    results, failed = [], 0
+    for item in items:
+        try:
+            results.append(work(item))
+        except MocapzError as exc:
+            if not many:
+                raise
+            failed += 1
+            click.echo(f"mocapz: error: {exc}", err=True)
+    return results, failed
+
+
+def finish(results: list[dict[str, Any]], many: bool, as_json: bool, failed: int) -> None:
+    """Print the ``--json`` object (one input's figures, or ``{"files": [...]}``), exit 1 if any input failed."""
+    if as_json and results:
+        echo_json(results[0] if not many else {"files": results})
+    if failed:
+        sys.exit(1)
 
 
 def message_flags(f: Any) -> Any:

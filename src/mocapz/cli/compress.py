@@ -11,7 +11,6 @@ decoded and measured: the line printed (stderr) gives the verified figures and b
 
 from __future__ import annotations
 
-import sys
 import time
 from pathlib import Path
 from typing import Any
@@ -19,7 +18,18 @@ from typing import Any
 import click
 
 from mocapz.cli.codec_flags import CodecCommand, check_codec_options, codec_flags
-from mocapz.cli.common import Say, cut, echo_json, fmt, frame_slice, message_flags, range_flags, unit_flag, with_unit
+from mocapz.cli.common import (
+    Say,
+    cut,
+    each_input,
+    finish,
+    fmt,
+    frame_slice,
+    message_flags,
+    range_flags,
+    unit_flag,
+    with_unit,
+)
 from mocapz.cli.outputs import check_outputs, write_output
 from mocapz.errors import MocapzError, OptionError
 from mocapz.files import STDIN_NAME, compressed_name, load_bytes, sniff
@@ -72,26 +82,16 @@ def compress(inputs: tuple[Path, ...], output: Path | None, to_stdout: bool, cod
     check_outputs(targets, force, folders_made=many and output is not None)
     if many and output is not None:
         output.mkdir(parents=True, exist_ok=True)
-    results, failed = [], 0
-    for path in inputs:
-        if path in folders:
-            from mocapz.cli.batch import run_batch_compress
+    failed = 0
+    for path in folders:
+        from mocapz.cli.batch import run_batch_compress
 
-            out_dir = output / path.name if (output is not None and len(inputs) > 1) else (output or path)
-            failed += run_batch_compress(path, out_dir, info.name, options, jobs, scheduler, force, as_json, say)
-            continue
-        try:
-            results.append(_one(path, _output_for(path, output, many), info.name, options, asf, fmt_name,
-                                (frames, start, end), unit, force, say))
-        except MocapzError as exc:
-            if not many:
-                raise
-            failed += 1
-            click.echo(f"mocapz: error: {exc}", err=True)
-    if as_json and results:
-        echo_json(results[0] if len(results) == 1 and not many else {"files": results})
-    if failed:
-        sys.exit(1)
+        out_dir = output / path.name if (output is not None and len(inputs) > 1) else (output or path)
+        failed += run_batch_compress(path, out_dir, info.name, options, jobs, scheduler, force, as_json, say)
+    files = [p for p in inputs if p not in folders]
+    results, bad = each_input(files, lambda p: _one(p, _output_for(p, output, many), info.name, options, asf,
+                                                    fmt_name, (frames, start, end), unit, force, say), many)
+    finish(results, many, as_json, failed + bad)
 
 
 def _output_for(path: Path, output: Path | None, many: bool) -> Path:

@@ -8,16 +8,15 @@ standard input. ``LIBRARY.mczdb --clip NAME`` takes one clip out of a library.
 
 from __future__ import annotations
 
-import sys
 import time
 from pathlib import Path
 from typing import Any
 
 import click
 
-from mocapz.cli.common import Say, cut, echo_json, frame_slice, message_flags, range_flags
+from mocapz.cli.common import Say, cut, each_input, finish, frame_slice, message_flags, range_flags
 from mocapz.cli.outputs import check_outputs, is_stdout, motion_to_stdout
-from mocapz.errors import FormatError, MocapzError, OptionError
+from mocapz.errors import FormatError, OptionError
 from mocapz.files import COMPRESSED_SUFFIX, LIBRARY_SUFFIX, STDIN_NAME, decompressed_name, read_file_bytes
 from mocapz.io import MOTION_EXTENSIONS
 
@@ -62,19 +61,9 @@ def decompress(inputs: tuple[Path, ...], output: Path | None, to_stdout: bool, f
     if output is not None and not many and not is_stdout(output) and output.suffix.lower() not in MOTION_EXTENSIONS:
         raise OptionError(f"{output}: unknown output extension {output.suffix!r} "
                           f"(expected one of {', '.join(MOTION_EXTENSIONS)})")
-    results, failed = [], 0
-    for path, root in files:
-        try:
-            results.append(_one(path, root, output, many, fmt_name, clip, (frames, start, end), force, say))
-        except MocapzError as exc:
-            if not many:
-                raise
-            failed += 1
-            click.echo(f"mocapz: error: {exc}", err=True)
-    if as_json and results:
-        echo_json(results[0] if not many else {"files": results})
-    if failed:
-        sys.exit(1)
+    results, failed = each_input(files, lambda item: _one(item[0], item[1], output, many, fmt_name, clip,
+                                                          (frames, start, end), force, say), many)
+    finish(results, many, as_json, failed)
 
 
 def _one(path: Path, root: Path | None, output: Path | None, many: bool, fmt_name: str | None, clip: str | None,
