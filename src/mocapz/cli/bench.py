@@ -21,7 +21,7 @@ import click
 @click.option("--no-plots", is_flag=True, help="skip the PNG plots")
 @click.option("--timeout", type=float, default=900.0, show_default=True,
               help="seconds allowed per codec call; a slower call is recorded as a failure")
-@click.option("--no-progress", is_flag=True, help="no progress bar")
+@click.option("-q", "--quiet", "--no-progress", "no_progress", is_flag=True, help="no progress bar")
 def bench(paths: tuple[Path, ...], codecs: str | None, quick: bool, out_dir: Path, no_plots: bool,
           timeout: float, no_progress: bool) -> None:
     """Compress, decompress and score every clip with every codec at a sweep of settings.
@@ -40,8 +40,9 @@ def bench(paths: tuple[Path, ...], codecs: str | None, quick: bool, out_dir: Pat
     written = write_report(doc, out_dir, plots=not no_plots)
     ok = sum(r.get("status") == "ok" for r in doc["records"])
     failed = len(doc["records"]) - ok
-    click.echo(f"{len(doc['clips'])} clips, {ok} measurements, {failed} failures in "
-               f"{time.perf_counter() - t0:.0f} s -> {written['report']}")
+    if not no_progress:
+        click.echo(f"{len(doc['clips'])} clips, {ok} measurements, {failed} failures in "
+                   f"{time.perf_counter() - t0:.0f} s -> {written['report']}", err=True)
 
 
 def _command(paths: tuple[Path, ...], codecs: str | None, quick: bool, out_dir: Path) -> str:

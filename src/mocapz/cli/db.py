@@ -98,6 +98,6 @@ def compress_db(inputs: tuple[Path, ...], output: Path, force: bool, as_json: bo
         click.echo(json.dumps(info))
     else:
         click.echo(f"{len(motions)} clips -> {output}: {len(data)} bytes, ratio {raw / len(data):.4g}, "
-                   f"{elapsed:.2f} s" + (f"; {failed} clip(s) failed" if failed else ""))
+                   f"{elapsed:.2f} s" + (f"; {failed} clip(s) failed" if failed else ""), err=True)
     if failed:
         sys.exit(1)

@@ -9,6 +9,7 @@ from pathlib import Path
 
 import click
 
+from mocapz.cli.common import Say, message_flags
 from mocapz.errors import MocapzError, OptionError
 
 PAGE_SUFFIXES = (".html", ".htm")
@@ -29,15 +30,16 @@ PAGE_SUFFIXES = (".html", ".htm")
               help="error shown fully red: file units or with a unit (2cm, 5mm); default: the clip's max error")
 @click.option("--asf", type=click.Path(path_type=Path), default=None, help="skeleton for an .amc ORIGINAL")
 @click.option("-f", "--force", is_flag=True, help="overwrite existing outputs")
+@message_flags
 def view(original: Path, decoded: Path | None, output: Path | None, animation: Path | None, fps: float | None,
          width: int, start: float | None, end: float | None, color_scale: str | None, asf: Path | None,
-         force: bool) -> None:
+         force: bool, quiet: bool, verbose: bool) -> None:
     """Show ORIGINAL and DECODED (a motion file or a .mcz) side by side, overlaid, errors in colour.
 
     ORIGINAL is a motion file (.bvh, .amc, .c3d, .trc) or a .mcz; DECODED, optional, is compared with it.
     Write an HTML page with -o (play, scrub, orbit the camera, error strip) and / or an animation with --gif.
     """
-    from mocapz.model.units import parse_length
+    from mocapz.model.units import length_in_file_units
     from mocapz.viewer import load_motion, prepare_view, render_animation, write_page
 
     if output is None and animation is None:
@@ -49,25 +51,28 @@ def view(original: Path, decoded: Path | None, output: Path | None, animation: P
     for p in (output, animation):  # refuse before the (slow) work, not after it
         if p is not None and p.exists() and not force:
             raise MocapzError(f"{p}: output exists (use -f to overwrite)")
+    say = Say(quiet, verbose)
     orig, _ = load_motion(original, asf)
     dec, compression = (None, {}) if decoded is None else load_motion(decoded)
     unit_cm = orig.skeleton.unit_cm if hasattr(orig, "skeleton") else orig.unit_cm
-    scale = None if color_scale is None else parse_length(color_scale, unit_cm, "--scale")
+    scale = None if color_scale is None else length_in_file_units(color_scale, unit_cm, "--scale")
     if scale is not None and scale <= 0:
         raise OptionError("--scale must be positive")
     try:
-        v = prepare_view(orig, dec, compression=compression, start=start, end=end, color_scale=scale)
+        with say.progress("preparing the view"):
+            v = prepare_view(orig, dec, compression=compression, start=start, end=end, color_scale=scale)
     except OptionError:
         raise
     except MocapzError as exc:
-        raise MocapzError(f"{decoded}: {exc}") from None
+        raise exc.at(decoded) from None
     if output is not None:
         size = write_page(v, output, force=force)
-        click.echo(f"{output}: {size:,} bytes, {v.n_frames} frames, {v.n_points} points"
-                   + (f" (every {v.step}th frame)" if v.step > 1 else ""))
+        say.info(f"{output}: {size:,} bytes, {v.n_frames} frames, {v.n_points} points"
+                 + (f" (every {v.step}th frame)" if v.step > 1 else ""))
     if animation is not None:
         full = prepare_view(orig, dec, compression=compression, start=start, end=end, color_scale=scale,
                             budget=None) if v.step > 1 else v
-        info = render_animation(full, animation, fps=fps, width=width, scale=scale, force=force)
-        click.echo(f"{animation}: {info['bytes']:,} bytes, {info['frames']} frames at {info['fps']:g} fps, "
+        with say.progress(f"rendering {animation.name}"):
+            info = render_animation(full, animation, fps=fps, width=width, scale=scale, force=force)
+        say.info(f"{animation}: {info['bytes']:,} bytes, {info['frames']} frames at {info['fps']:g} fps, "
                    f"{info['width']}x{info['height']}")

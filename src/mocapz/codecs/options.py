@@ -10,54 +10,14 @@ encoder receives the checked values (lengths as :class:`Length`, resolved agains
 from __future__ import annotations
 
 import math
-import re
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from mocapz.errors import OptionError
-from mocapz.model.motion import UNIT_CM
+from mocapz.model.units import Length, parse_length
 
 KINDS = ("int", "float", "length", "percent", "bool", "choice", "names", "file", "weights", "indices")
-_LENGTH = re.compile(r"^\s*([0-9]*\.?[0-9]+(?:[eE][-+]?[0-9]+)?)\s*([a-zA-Z]*)\s*$")
-
-
-@dataclass(frozen=True)
-class Length:
-    """A length as the user gave it: a number in ``unit`` (``"mm"``, ``"cm"``, ``"m"``, ``"in"``), or in the
-    file's own length unit when ``unit`` is empty."""
-
-    value: float
-    unit: str = ""
-
-    def in_file_units(self, unit_cm: float | None, what: str = "length") -> float:
-        """The length in file units, for a file whose unit is ``unit_cm`` centimetres (None: unknown)."""
-        if not self.unit:
-            return self.value
-        if unit_cm is None:
-            raise OptionError(f"{what}: the file's length unit is unknown; give the value in file units "
-                              f"(without a unit) or say the file's unit with --unit")
-        return self.value * UNIT_CM[self.unit] / unit_cm
-
-    def __str__(self) -> str:
-        return f"{self.value:g}{self.unit}"
-
-
-def parse_length(text: Any) -> Length:
-    """A :class:`Length` from ``0.5``, ``"0.5"``, ``"2cm"``, ``"4 mm"``; raises ValueError when malformed."""
-    if isinstance(text, Length):
-        return text
-    if isinstance(text, bool):
-        raise ValueError("not a length")
-    if isinstance(text, int | float):
-        return Length(float(text))
-    m = _LENGTH.match(str(text))
-    if not m:
-        raise ValueError("not a length")
-    unit = m.group(2).lower()
-    if unit and unit not in UNIT_CM:
-        raise ValueError(f"unknown unit {unit!r}")
-    return Length(float(m.group(1)), unit)
 
 
 @dataclass(frozen=True)
