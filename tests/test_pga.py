@@ -11,9 +11,9 @@ from mocapz.codecs.pga import lifting, so3
 from mocapz.codecs.pga.effectors import find_effectors
 from mocapz.codecs.pga.encode import encode_prepared, prepare
 from mocapz.codecs.pga.ik import IKProblem, solve
+from mocapz.codecs.pga.joints import inner_joints
 from mocapz.codecs.pga.model import fit_pga
 from mocapz.codecs.pga.params import PGASettings
-from mocapz.codecs.pga.pipeline import inner_joints
 from mocapz.edit import edit, effector_trajectories
 from mocapz.errors import OptionError, TargetError
 from mocapz.model.kinematics import forward_kinematics, local_rotations, local_translations

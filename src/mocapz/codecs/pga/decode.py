@@ -8,26 +8,25 @@ from typing import Any
 import numpy as np
 
 from mocapz.codecs.pga import lifting
-from mocapz.codecs.pga.effectors import find_effectors
-from mocapz.codecs.pga.ik import IKProblem, solve
+from mocapz.codecs.pga.channels import channels_from_pose
+from mocapz.codecs.pga.clip import targets_in_root_frame
+from mocapz.codecs.pga.effectors import effector_points
+from mocapz.codecs.pga.ik import IKProblem, make_problem, solve
+from mocapz.codecs.pga.joints import inner_joints, position_columns
 from mocapz.codecs.pga.model import PGAModel
+from mocapz.codecs.pga.outliers import decode_outliers, kept_frames
+from mocapz.codecs.pga.packing import unpack_matrices
 from mocapz.codecs.pga.params import PGASettings
-from mocapz.codecs.pga.pipeline import (
-    channels_from_rotations,
-    dequantise_model,
-    inner_joints,
-    model_from_matrices,
-    position_columns,
-    skeleton_scale,
-    targets_in_root_frame,
-    unpack_matrices,
-)
+from mocapz.codecs.pga.quantise import dequantise_model, model_from_matrices
 from mocapz.errors import FormatError
 from mocapz.model.header import ClipHeader
 from mocapz.model.skeleton import Skeleton
 
 
 def stream_count(s: PGASettings, n_other: int) -> int:
+    """Number of matrices in the ``data`` section, in the order :func:`mocapz.codecs.pga.encode.encode_prepared`
+    packs them: model header, loadings, root position, root orientation, effectors, then the coordinates
+    (when coded) and the ``n_other`` non-root position channels (when any)."""
     return 5 + int(s.use_coords) + int(n_other > 0)
 
 
@@ -59,7 +58,7 @@ def decode_channels(skeleton: Skeleton, s: PGASettings, sections: dict[str, byte
     outliers = np.asarray(s.outliers, dtype=np.int64)
     if outliers.size and (outliers.max() >= frames or np.any(np.diff(outliers) <= 0)):
         raise FormatError(None, "corrupted PGA stream (outlier frames)")
-    kept = np.setdiff1d(np.arange(frames), outliers)
+    kept = kept_frames(frames, outliers)
     n = len(kept)
     out = np.zeros((frames, skeleton.n_channels))
     if n:
@@ -67,15 +66,6 @@ def decode_channels(skeleton: Skeleton, s: PGASettings, sections: dict[str, byte
     if outliers.size:
         out[outliers] = decode_outliers(sections["outl"], outliers.size, skeleton.n_channels)
     return out
-
-
-def decode_outliers(data: bytes, count: int, n_channels: int) -> np.ndarray:
-    from mocapz.format.entropy import unpack_uint64, unzigzag
-
-    raw = unzigzag(unpack_uint64(data))
-    if raw.size != count * n_channels + 1 or not 0 <= raw[0] <= 9:
-        raise FormatError(None, "corrupted PGA stream (outlier frames)")
-    return raw[1:].reshape(count, n_channels) / 10.0 ** int(raw[0])
 
 
 @dataclass
@@ -93,12 +83,13 @@ class Decoded:
 
 
 def decode_streams(skeleton: Skeleton, s: PGASettings, sections: dict[str, bytes], n: int) -> Decoded:
+    """The ``data`` section's streams for ``n`` kept frames, with the effector targets in the root frame."""
     inner = inner_joints(skeleton)
     _, other_cols = position_columns(skeleton)
     if s.eff_mode == 2:
         effectors = np.zeros(0, dtype=np.int64)
     else:
-        effectors = np.asarray(s.effectors, dtype=np.int64) if s.effectors else find_effectors(skeleton)
+        effectors = effector_points(skeleton, s.effectors)
     mats = unpack_matrices(sections["data"], stream_count(s, other_cols.size))
     model = dequantise_model(model_from_matrices(mats[0], mats[1]), inner, s.k, s.basis_bits, s.mean_step)
     root_pos = lifting.decode_rn(mats[2], n, s.pos_step, s.lod_root)
@@ -123,22 +114,6 @@ def decode_streams(skeleton: Skeleton, s: PGASettings, sections: dict[str, bytes
     return Decoded(model, effectors, problem, root_pos, root_rot, targets, coords, other)
 
 
-def make_problem(skeleton: Skeleton, model: PGAModel, effectors: np.ndarray, other: np.ndarray) -> IKProblem:
-    """The IK set-up, with the decoded non-root position channels (if any) as translations."""
-    n = other.shape[0]
-    _, other_cols = position_columns(skeleton)
-    if other_cols.size:
-        trans = np.broadcast_to(skeleton.offsets, (n, skeleton.n_joints, 3)).copy()
-        col_joint = _column_joints(skeleton)
-        for i, c in enumerate(other_cols):
-            trans[:, col_joint[c][0], "XYZ".index(col_joint[c][1])] = other[:, i]
-    else:
-        trans = skeleton.offsets
-    problem = IKProblem(skeleton, model, effectors, np.broadcast_to(np.eye(3), (skeleton.n_joints, 3, 3)),
-                        trans, skeleton_scale(skeleton))
-    return problem
-
-
 def decode_rows(skeleton: Skeleton, s: PGASettings, sections: dict[str, bytes], n: int,
                 rows: np.ndarray) -> np.ndarray:
     """Channels ``(len(rows), C)`` of some kept frames only (the IK is per frame when the temporal
@@ -156,6 +131,7 @@ def decode_rows(skeleton: Skeleton, s: PGASettings, sections: dict[str, bytes], 
 
 def decode_kept(skeleton: Skeleton, s: PGASettings, sections: dict[str, bytes], n: int,
                 edit: dict[int, np.ndarray] | None = None) -> np.ndarray:
+    """Channels ``(n, C)`` of the ``n`` kept frames; ``edit`` as in :func:`decode_channels`."""
     d = decode_streams(skeleton, s, sections, n)
     targets = d.targets
     if edit:
@@ -169,7 +145,6 @@ def rebuild(skeleton: Skeleton, d: Decoded, s: PGASettings, targets: np.ndarray)
     """IK and channel assembly for the kept frames. Always returns finite values."""
     n = d.root_pos.shape[0]
     model = d.model
-    root_cols, other_cols = position_columns(skeleton)
     x0 = d.coords if d.coords is not None else np.zeros((n, model.k))
     if len(d.effectors) == 0 or s.iterations == 0:
         x = x0
@@ -181,21 +156,4 @@ def rebuild(skeleton: Skeleton, d: Decoded, s: PGASettings, targets: np.ndarray)
     local = np.broadcast_to(np.eye(3), (n, skeleton.n_joints, 3, 3)).copy()
     local[:, 0] = d.root_rot
     local[:, model.joints] = model.pose(x)
-    out = np.zeros((n, skeleton.n_channels))
-    channels_from_rotations(skeleton, local, out)
-    rot_cols = skeleton.rotation_columns()
-    period = 360.0 if skeleton.angle_unit == "deg" else 2 * np.pi
-    out[:, rot_cols] = np.unwrap(out[:, rot_cols], period=period, axis=0)
-    labels = skeleton.channel_labels()
-    for c in root_cols:
-        out[:, c] = d.root_pos[:, "XYZ".index(labels[c].split(".")[-1][0])]
-    out[:, other_cols] = d.other
-    return np.nan_to_num(out)
-
-
-def _column_joints(skeleton: Skeleton) -> dict[int, tuple[int, str]]:
-    cj = {}
-    for j, (sl, chs) in enumerate(zip(skeleton.channel_slices(), skeleton.channels, strict=True)):
-        for i, c in enumerate(chs):
-            cj[sl.start + i] = (j, c[0])
-    return cj
+    return channels_from_pose(skeleton, local, d.root_pos, d.other)

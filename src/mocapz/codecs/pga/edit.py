@@ -18,7 +18,8 @@ from __future__ import annotations
 import numpy as np
 
 from mocapz.codecs.pga.decode import decode_channels, decode_streams
-from mocapz.codecs.pga.effectors import find_effectors
+from mocapz.codecs.pga.effectors import effector_points
+from mocapz.codecs.pga.outliers import kept_frames
 from mocapz.codecs.pga.params import PGASettings
 from mocapz.errors import OptionError
 from mocapz.model.header import ClipHeader
@@ -30,7 +31,7 @@ def _open(sections: dict[str, bytes], header: ClipHeader) -> tuple[PGASettings, 
     if header.skeleton is None:
         raise OptionError("editing needs a skeletal clip")
     s = PGASettings.from_bytes(sections["params"])
-    eff = np.asarray(s.effectors, dtype=np.int64) if s.effectors else find_effectors(header.skeleton)
+    eff = effector_points(header.skeleton, s.effectors)
     return s, eff
 
 
@@ -41,7 +42,7 @@ def effector_trajectories(sections: dict[str, bytes], header: ClipHeader) -> dic
     skeleton = header.skeleton
     assert skeleton is not None
     frames = header.frames
-    kept = np.setdiff1d(np.arange(frames), np.asarray(s.outliers, dtype=np.int64))
+    kept = kept_frames(frames, s.outliers)
     d = decode_streams(skeleton, s, sections, len(kept))
     coded = d.root_pos[:, None] + np.einsum("fij,fej->fei", d.root_rot, d.targets)
     pos = forward_kinematics(skeleton, decode_channels(skeleton, s, sections, frames))[0][:, eff]
@@ -70,7 +71,7 @@ def edit(sections: dict[str, bytes], header: ClipHeader, targets: dict[str, np.n
     frames = header.frames
     names = skeleton.point_names
     slots = {names[e]: i for i, e in enumerate(eff)}
-    kept = np.setdiff1d(np.arange(frames), np.asarray(s.outliers, dtype=np.int64))
+    kept = kept_frames(frames, s.outliers)
     replace: dict[int, np.ndarray] = {}
     for name, traj in targets.items():
         if name not in slots:

@@ -2,21 +2,17 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
 
+from mocapz.codecs.pga.joints import rest_positions
+from mocapz.errors import OptionError
 from mocapz.model.skeleton import Skeleton
 
 
-def rest_positions(skeleton: Skeleton) -> np.ndarray:
-    """Rest-pose positions ``(points, 3)`` (all rotations zero, offsets only)."""
-    from mocapz.model.kinematics import chain
-
-    n = skeleton.n_joints
-    rot = np.broadcast_to(np.eye(3), (1, n, 3, 3)).copy()
-    return chain(skeleton, rot, skeleton.offsets[None].copy())[0][0]
-
-
 def path_to_root(skeleton: Skeleton, point: int) -> list[int]:
+    """Joint indices from ``point`` (a joint, or an end site's carrier joint) up to the root, inclusive."""
     pp = skeleton.point_parents
     out = []
     j = int(pp[point]) if point >= skeleton.n_joints else point
@@ -39,8 +35,6 @@ def find_effectors(skeleton: Skeleton, names: list[str] | None = None) -> np.nda
     if names:
         missing = [n for n in names if n not in points]
         if missing:
-            from mocapz.errors import OptionError
-
             raise OptionError(f"unknown effector joint(s): {', '.join(missing)} (known: {', '.join(points)})")
         return np.array([points.index(n) for n in names], dtype=np.int64)
     rest = rest_positions(skeleton)
@@ -74,3 +68,8 @@ def find_effectors(skeleton: Skeleton, names: list[str] | None = None) -> np.nda
         if all(between(p, c) >= 0.4 * longest for c in chosen):
             chosen.append(p)
     return np.array(sorted(chosen), dtype=np.int64)
+
+
+def effector_points(skeleton: Skeleton, points: Sequence[int] | None) -> np.ndarray:
+    """The given FK point indices ``(e,)``, or the automatic ones (:func:`find_effectors`) when none are given."""
+    return np.asarray(points, dtype=np.int64) if points else find_effectors(skeleton)

@@ -1,4 +1,5 @@
-"""PGA encoder: pose model, multiscale trajectories, quantisation and entropy coding."""
+"""PGA encoder for fixed settings: the per-clip analysis (:func:`prepare`, reused by rate control), then
+pose model, multiscale trajectories, quantisation and entropy coding (:func:`encode_prepared`)."""
 
 from __future__ import annotations
 
@@ -6,71 +7,30 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from mocapz.codecs.pga import lifting, so3
-from mocapz.codecs.pga.decode import make_problem
-from mocapz.codecs.pga.effectors import find_effectors
-from mocapz.codecs.pga.model import PGAModel, fit_pga
+from mocapz.codecs.pga import lifting
+from mocapz.codecs.pga.clip import Clip, analyse, targets_in_root_frame
+from mocapz.codecs.pga.effectors import effector_points
+from mocapz.codecs.pga.ik import make_problem
+from mocapz.codecs.pga.joints import check_skeleton, inner_joints
+from mocapz.codecs.pga.model import PGAModel, coordinates, fit_pga
+from mocapz.codecs.pga.outliers import detect_outliers, encode_outliers, kept_frames
+from mocapz.codecs.pga.packing import pack_matrices
 from mocapz.codecs.pga.params import PGASettings
-from mocapz.codecs.pga.pipeline import (
-    Clip,
-    analyse,
-    check_skeleton,
-    coordinates,
-    inner_joints,
-    model_matrices,
-    pack_matrices,
-    quantise_model,
-    targets_in_root_frame,
-)
-from mocapz.format.entropy import pack_uint64, zigzag
+from mocapz.codecs.pga.quantise import model_matrices, quantise_model
 from mocapz.model.kinematics import forward_kinematics
 from mocapz.model.motion import Motion
 
 
-def detect_outliers(motion: Motion, factor: float = 15.0) -> list[int]:
-    """Frames that are isolated spikes in pose space (e.g. the T-pose cgspeed files add as frame 1).
-
-    With ``step(a, b)`` the geodesic distance between the inner-joint poses of frames ``a`` and ``b`` and
-    ``s`` its median over consecutive frames: an inner frame ``t`` is an outlier when ``step(t-1, t)`` and
-    ``step(t, t+1)`` both exceed ``factor * s`` while ``step(t-1, t+1)`` does not (its neighbours agree
-    with each other: a spike, not a fast move); the first (last) frame when its step to the next
-    (previous) exceeds ``factor * s`` and that frame's own next step is ordinary (under ``3 s``).
-    """
-    if motion.n_frames < 8:
-        return []
-    sk = motion.skeleton
-    inner = inner_joints(sk)
-    from mocapz.model.kinematics import local_rotations
-
-    rot = local_rotations(sk, motion.channels)[:, inner]
-    n = len(rot)
-
-    def dist(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-        return np.linalg.norm(so3.log(np.swapaxes(a, -1, -2) @ b).reshape(len(a), -1), axis=1)
-
-    step = dist(rot[:-1], rot[1:])
-    skip = dist(rot[:-2], rot[2:])
-    s = max(float(np.median(step)), 1e-9)
-    out = []
-    if step[0] > factor * s and step[1] < 3 * s:
-        out.append(0)
-    big = step > factor * s
-    inner_t = np.flatnonzero(big[:-1] & big[1:] & (skip < factor * s)) + 1
-    out += [int(t) for t in inner_t]
-    if step[-1] > factor * s and step[-2] < 3 * s:
-        out.append(n - 1)
-    return sorted(set(out))
-
-
 @dataclass
 class Prepared:
-    """Per-clip analysis reused across the settings tried by rate control."""
+    """Per-clip analysis reused across the settings tried by rate control (F = kept frames, e = effectors;
+    file units)."""
 
     motion: Motion
     outliers: list[int]
-    kept: np.ndarray
+    kept: np.ndarray  # (F,) frame indices
     clip: Clip
-    effectors: np.ndarray
+    effectors: np.ndarray  # (e,) FK point indices
     eff_global: np.ndarray  # (F, e, 3)
     eff_local: np.ndarray  # (F, e, 3) in the root frame
     full_model: PGAModel
@@ -78,13 +38,15 @@ class Prepared:
 
 
 def prepare(motion: Motion, effectors: list[int] | None = None, outliers: list[int] | None = None) -> Prepared:
+    """Analyse a clip: outlier frames (found when ``outliers`` is None), end effectors (FK point indices;
+    found from the tree when not given), the clip's streams and the full PGA model of its kept frames."""
     sk = motion.skeleton
     check_skeleton(sk)
     out = detect_outliers(motion) if outliers is None else outliers
-    kept = np.setdiff1d(np.arange(motion.n_frames), np.asarray(out, dtype=np.int64))
+    kept = kept_frames(motion.n_frames, out)
     ch = motion.channels[kept]
     clip = analyse(sk, ch)
-    eff = np.asarray(effectors, dtype=np.int64) if effectors else find_effectors(sk)
+    eff = effector_points(sk, effectors)
     pos = forward_kinematics(sk, ch)[0]
     inner = inner_joints(sk)
     model = fit_pga(clip.local_rot[:, inner], inner) if len(kept) else None
@@ -126,11 +88,3 @@ def encode_prepared(p: Prepared, s: PGASettings) -> dict[str, bytes]:
     if p.outliers:
         sections["outl"] = encode_outliers(p.motion, p.outliers)
     return sections
-
-
-def encode_outliers(motion: Motion, frames: list[int]) -> bytes:
-    """Outlier frames' channels exactly at the source's precision: integers at the largest decimal count of
-    any column (4 when unknown), which represents every column exactly."""
-    dec = int(min(motion.decimals.max(), 9)) if motion.decimals is not None and motion.decimals.size else 4
-    vals = np.round(motion.channels[frames] * 10.0**dec).astype(np.int64)
-    return pack_uint64(zigzag(np.concatenate([[dec], vals.ravel()])))

@@ -19,6 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from mocapz.codecs.pga import so3
+from mocapz.codecs.pga.joints import column_joints, position_columns, skeleton_scale
 from mocapz.codecs.pga.model import PGAModel
 from mocapz.model.skeleton import Skeleton
 
@@ -104,6 +105,23 @@ class IKProblem:
         for c, (i1, i2) in enumerate(((1, 2), (2, 0), (0, 1))):
             jac[:, :, c] = dm[..., i2] @ a[:, :, i1] - dm[..., i1] @ a[:, :, i2]
         return jac
+
+
+def make_problem(skeleton: Skeleton, model: PGAModel, effectors: np.ndarray, other: np.ndarray) -> IKProblem:
+    """The IK set-up for FK points ``effectors`` ``(e,)``, with the non-root position channels ``(F, p)``
+    (file units; as decoded, if any) as translations."""
+    n = other.shape[0]
+    _, other_cols = position_columns(skeleton)
+    if other_cols.size:
+        trans = np.broadcast_to(skeleton.offsets, (n, skeleton.n_joints, 3)).copy()
+        col_joint = column_joints(skeleton)
+        for i, c in enumerate(other_cols):
+            trans[:, col_joint[c][0], "XYZ".index(col_joint[c][1])] = other[:, i]
+    else:
+        trans = skeleton.offsets
+    problem = IKProblem(skeleton, model, effectors, np.broadcast_to(np.eye(3), (skeleton.n_joints, 3, 3)),
+                        trans, skeleton_scale(skeleton))
+    return problem
 
 
 def solve(problem: IKProblem, targets: np.ndarray, x0: np.ndarray, *, x_prior: np.ndarray | None = None,

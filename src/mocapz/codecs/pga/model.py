@@ -79,3 +79,12 @@ def fit_pga(rotations: np.ndarray, joints: np.ndarray, k: int | None = None) -> 
 def k_for_variance(model: PGAModel, fraction: float) -> int:
     """Smallest number of directions explaining at least ``fraction`` of the variance."""
     return int(np.searchsorted(model.explained(), fraction) + 1)
+
+
+def coordinates(model: PGAModel, rotations: np.ndarray) -> np.ndarray:
+    """Least-squares geodesic coordinates ``(frames, k)`` of poses ``(frames, n, 3, 3)`` for a (quantised,
+    near-orthonormal) basis; :meth:`PGAModel.project` is the same for an orthonormal one."""
+    t = model.tangent(rotations)
+    v = model.basis
+    gram = v.T @ v + 1e-12 * np.eye(v.shape[1])
+    return np.linalg.solve(gram, v.T @ t.T).T

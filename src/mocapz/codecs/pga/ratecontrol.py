@@ -1,4 +1,4 @@
-"""Option parsing and rate control for the PGA codec.
+"""The PGA codec's container entry point (:func:`encode`) and its rate control.
 
 With a target (``max_distortion`` in percent, ``max_error`` as a length) the encoder searches the
 settings for the smallest file whose *decoded* result meets the target on this clip: it starts from a
