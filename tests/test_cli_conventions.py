@@ -148,3 +148,10 @@ def test_unit_flag_makes_a_length_target_possible(work: Path) -> None:
 
 def test_options_doc_is_in_step() -> None:
     assert DOCS.read_text() == options_markdown(all_codecs()), "regenerate: python -m mocapz.codecs > docs/options.md"
+
+
+def test_codec_that_does_not_take_the_data_is_a_file_error(tmp_path: Path) -> None:
+    """Options are fine (checked before reading); the file is what the codec cannot take: exit code 1."""
+    res = text(run("compress", data_path(C3D), "-o", tmp_path / "x.mcz", "--codec", "pga"))
+    assert_one_line_error(res, "01_01.c3d")
+    assert "markers" in res.stderr and not (tmp_path / "x.mcz").exists()

@@ -127,6 +127,8 @@ def _one(path: Path, out: Path, codec: str, options: dict[str, Any], asf: Path |
     with say.progress(f"{name}: {codec}, {motion.n_frames} frames"):
         try:
             data = do_compress(motion, codec=codec, **options)
+        except OptionError as exc:  # the options were checked: this one is about the file (exit code 1)
+            raise MocapzError(exc.message, path=exc.path or name) from None
         except MocapzError as exc:
             raise exc.at(name) from None
         elapsed = time.perf_counter() - t0
