@@ -62,8 +62,6 @@ def _rows(options: tuple[Option, ...]) -> list[tuple[str, str]]:
 class CodecCommand(click.Command):
     """A command whose help shows the codec options: of the ``--codec`` given, else the codec list."""
 
-    default_codec: str | None = "lossless"
-
     def parse_args(self, ctx: click.Context, args: list[str]) -> list[str]:
         for i, a in enumerate(args):
             if a == "--codec" and i + 1 < len(args):
