@@ -45,12 +45,7 @@ ALL_FILES = sorted(str(p.relative_to(DATA)) for p in DATA.rglob("*") if p.suffix
 SHARED = [r for r in ALL_FILES if not r.startswith(SAMPLES_DIR)]
 SAMPLES = [r for r in ALL_FILES if r.startswith(SAMPLES_DIR)]
 BROKEN_SAMPLES = {"Empty.c3d", "bad_parameter_section.c3d"}  # bad-input material: must be refused cleanly
-UNREAD_SAMPLES = {  # readable files mocapz does not read yet (issue 10): strict, so a fix shows up
-    "Dance.c3d": "documented header errors that tolerant readers recover from",
-    "Eb015si.c3d": "SGI/MIPS storage (ezc3d refuses it)",
-    "Eb015sr.c3d": "SGI/MIPS storage (ezc3d refuses it)",
-    "FP1.C3D": "refused by mocapz's own pre-checks although ezc3d reads it",
-}
+UNREAD_SAMPLES: dict[str, str] = {}  # readable files mocapz does not read yet (issue 10): strict xfail
 CMU_BVH = sorted(str(p.relative_to(DATA)) for p in DATA.glob("cmu/bvh/*.bvh"))
 READER = {".bvh": "mocapz.io.bvh", ".amc": "mocapz.io.amc", ".c3d": "mocapz.io.c3d", ".trc": "mocapz.io.trc"}
 MIN_CMU_RATIO = 3.1  # measured 3.17 (goal 3.5): guards against regressions

@@ -1,4 +1,5 @@
-"""C3D marker files, read and written through ``ezc3d``.
+"""C3D marker files, read through ``ezc3d`` (or mocapz's own decoder where ezc3d cannot) and written
+through ``ezc3d``.
 
 Reading keeps the 3D points (``POINT:LABELS``, ``POINT:RATE``, ``POINT:UNITS``, first frame), turns
 missing samples (ezc3d NaN or a negative residual) into NaN, and keeps the analog channels, their
@@ -8,7 +9,11 @@ carried over.
 
 Before ezc3d sees a file it is checked by :func:`mocapz.io.c3d_checks.check_c3d_file` (ezc3d segfaults
 on some corrupt parameter sections, silently reads a truncated file as a shorter clip and raises bare C++
-errors on garbage); the errors ezc3d still raises become :class:`FormatError` here.
+errors on garbage). Files ezc3d must not be given (SGI/MIPS storage; a POINT:FRAMES past the end of the
+file) and files ezc3d refuses although their structure passed the checks (c3d.org ``Dance.c3d``: header
+errors) are decoded by :mod:`mocapz.io.c3d_tolerant` instead, which gives ezc3d's values on the files
+ezc3d reads; ``metadata["c3d_reader"]`` says which reader read the file and why. What neither reads
+becomes a :class:`FormatError`.
 """
 
 from __future__ import annotations
@@ -21,7 +26,7 @@ from typing import Any
 import numpy as np
 
 from mocapz.errors import FormatError, MocapzError
-from mocapz.io.c3d_checks import C3DHeader, check_c3d_file
+from mocapz.io.c3d_checks import C3DLayout, check_c3d_file
 from mocapz.io.common import atomic_write
 from mocapz.model.motion import MarkerMotion
 
@@ -40,15 +45,17 @@ def read_c3d(path: str | os.PathLike[str]) -> MarkerMotion:
         files), NaN where a sample is missing; ``metadata`` holds ``first_frame`` (1-based),
         ``residuals`` ``(frames, markers)``, ``point_scale``, ``point_descriptions`` and, when the file
         has analog channels, ``analogs`` ``(channels, samples)`` float64 with ``analog_labels``,
-        ``analog_units``, ``analog_descriptions`` and ``analog_rate`` (Hz).
+        ``analog_units``, ``analog_descriptions`` and ``analog_rate`` (Hz); ``c3d_reader`` is ``"ezc3d"``
+        or, for a file ezc3d cannot read, ``"mocapz.io.c3d_tolerant (<why>)"``.
     """
     path = Path(path)
-    header = check_c3d_file(path)
-    c3d = _load(path)
+    layout = check_c3d_file(path)
+    c3d, reader = _load(path, layout)
     positions, residuals = _point_data(c3d, path)
     params = c3d["parameters"]
     units = _first_string(params, "POINT", "UNITS")
-    metadata = _metadata(path, c3d, header, residuals)
+    metadata = _metadata(path, c3d, layout, residuals)
+    metadata["c3d_reader"] = reader
     if units is None:
         metadata["units_note"] = "POINT:UNITS missing; millimetres assumed (the C3D default)"
     return MarkerMotion(
@@ -75,7 +82,7 @@ def _point_data(c3d: Any, path: Path) -> tuple[np.ndarray, np.ndarray]:
     return positions, residuals
 
 
-def _metadata(path: Path, c3d: Any, header: C3DHeader, residuals: np.ndarray) -> dict[str, Any]:
+def _metadata(path: Path, c3d: Any, layout: C3DLayout, residuals: np.ndarray) -> dict[str, Any]:
     params = c3d["parameters"]
     meta: dict[str, Any] = {
         "path": str(path),
@@ -84,20 +91,30 @@ def _metadata(path: Path, c3d: Any, header: C3DHeader, residuals: np.ndarray) ->
         "residuals": residuals,
         "point_scale": _first_number(params, "POINT", "SCALE", -1.0),
         "point_descriptions": _fit(_strings(params, "POINT", "DESCRIPTIONS"), residuals.shape[1], ""),
-        "c3d_float": header.is_float,
-        "c3d_processor": header.processor,
+        "c3d_float": layout.header.is_float,
+        "c3d_processor": layout.header.processor,
     }
     meta.update(_analog_metadata(c3d, params))
     return meta
 
 
-def _load(path: Path) -> Any:
-    import ezc3d
+def _load(path: Path, layout: C3DLayout) -> tuple[Any, str]:
+    """The file read by ezc3d, or by :mod:`mocapz.io.c3d_tolerant` when ezc3d must not be given it or
+    refuses it; and which reader read it (with why, for the tolerant one)."""
+    why = layout.ezc3d_unsafe
+    if not why:
+        import ezc3d
+
+        try:
+            return ezc3d.c3d(str(path), extract_forceplat_data=False), "ezc3d"
+        except Exception as exc:  # ezc3d raises RuntimeError, OSError, ValueError... from C++
+            why = f"ezc3d: {_short(exc)}"
+    from mocapz.io.c3d_tolerant import read_c3d_raw
 
     try:
-        return ezc3d.c3d(str(path), extract_forceplat_data=False)
-    except Exception as exc:  # ezc3d raises RuntimeError, OSError, ValueError... from C++
-        raise FormatError(path, f"not a readable C3D file (ezc3d: {_short(exc)})") from None
+        return read_c3d_raw(path, layout), f"mocapz.io.c3d_tolerant ({why})"
+    except FormatError as exc:
+        raise FormatError(path, f"not a readable C3D file ({why}; {exc.message})") from None
 
 
 def _short(exc: BaseException) -> str:

@@ -4,13 +4,16 @@ ezc3d segfaults on some corrupt parameter sections, silently reads a truncated f
 and raises bare C++ errors on garbage. :func:`check_c3d_file` reads the 512-byte header and the
 parameter section itself and checks the header key and processor type, every parameter record, the
 parameters ezc3d indexes blindly and the data size against the file size; any problem becomes a
-:class:`FormatError`. Sizes are in bytes, positions in 512-byte blocks (1-based, as in the file).
+:class:`FormatError`. It returns a :class:`C3DLayout` (the header, the parameters and the checked data
+size), which also says when ezc3d must not be given the file at all (SGI/MIPS storage, which ezc3d
+refuses; a POINT:FRAMES that runs past the end of the file) so that :mod:`mocapz.io.c3d_tolerant` reads
+it instead. Sizes are in bytes, positions in 512-byte blocks (1-based, as in the file).
 """
 
 from __future__ import annotations
 
 import struct
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -29,7 +32,8 @@ SCALAR_PARAMS = [("POINT", n) for n in ("USED", "FRAMES", "RATE", "SCALE", "DATA
 class C3DHeader:
     """The fields of the 512-byte C3D header (and of the parameter-section header) that size the file.
 
-    ``first_frame`` / ``last_frame`` are the header's 1-based 16-bit frame numbers; ``rate`` is in Hz.
+    ``first_frame`` / ``last_frame`` are the header's 1-based 16-bit frame numbers; ``rate`` is in Hz;
+    ``scale`` is the header's point scale (negative for float storage).
     """
 
     param_block: int
@@ -42,6 +46,7 @@ class C3DHeader:
     data_start: int
     analog_samples: int
     rate: float
+    scale: float
 
     @property
     def frames(self) -> int:
@@ -65,14 +70,54 @@ class C3DParam:
     def numbers(self, processor: int) -> np.ndarray:
         """The values as float64 (empty for char parameters)."""
         if self.kind == 4:
-            return np.array([_float32(self.data[i:i + 4], processor) for i in range(0, len(self.data), 4)])
+            return decode_float32(self.data, processor)
         if self.kind in (1, 2):
             fmt = f"{PROCESSORS[processor]}{len(self.data) // self.kind}{'b' if self.kind == 1 else 'h'}"
             return np.array(struct.unpack(fmt, self.data), dtype=np.float64)
         return np.empty(0)
 
+    def strings(self) -> list[str]:
+        """A char parameter's ``count`` strings of ``dims[0]`` characters each, trailing blanks removed
+        (all empty when the length is 0); ``[]`` for a numeric parameter."""
+        if self.kind != -1:
+            return []
+        width = self.dims[0]
+        text = self.data.decode("latin-1")
+        return [text[i * width:(i + 1) * width].rstrip() for i in range(self.count)]
 
-def check_c3d_file(path: Path) -> C3DHeader:
+
+@dataclass(frozen=True)
+class C3DLayout:
+    """What :func:`check_c3d_file` found: the header, every parameter keyed ``(GROUP, NAME)``, and the data
+    as checked against the file size: ``frames`` frames of ``points`` points and ``channels`` analog
+    channels sampled ``samples`` times a frame, from byte ``data_offset`` on. ``ezc3d_unsafe`` says why
+    ezc3d must not be given the file (``""`` when it may).
+    """
+
+    header: C3DHeader
+    params: dict[tuple[str, str], C3DParam]
+    points: int
+    frames: int
+    channels: int
+    samples: int
+    ezc3d_unsafe: str = ""
+
+    @property
+    def value_bytes(self) -> int:
+        """Bytes of one stored value: 4 (float32) or 2 (int16)."""
+        return 4 if self.header.is_float else 2
+
+    @property
+    def frame_values(self) -> int:
+        """Values stored for one frame: x, y, z and residual word per point, then the analog samples."""
+        return 4 * self.points + self.channels * self.samples
+
+    @property
+    def data_offset(self) -> int:
+        return (self.header.data_start - 1) * BLOCK
+
+
+def check_c3d_file(path: Path) -> C3DLayout:
     """Validate a C3D file before ezc3d reads it; raise :class:`FormatError` if it cannot be read.
 
     Checks the header key and processor type, walks every parameter record (each must fit in its
@@ -80,12 +125,10 @@ def check_c3d_file(path: Path) -> C3DHeader:
     without bounds checks, and checks the file size against the data the parameters declare.
     """
     size = _file_size(path)
-    head, section = _read_sections(path, size)
-    header = _parse_header(head, section, path)
+    header, section = _read_sections(path, size)
     params = _walk_parameters(section, header.processor, path)
     _check_parameters(params, header.processor, path)
-    _check_data_size(header, params, size, path)
-    return header
+    return _data_layout(header, params, size, path)
 
 
 def _file_size(path: Path) -> int:
@@ -101,8 +144,15 @@ def _file_size(path: Path) -> int:
     return size
 
 
-def _read_sections(path: Path, size: int) -> tuple[bytes, bytes]:
-    """The 512-byte header and the whole parameter section (as many blocks as it declares)."""
+def _read_sections(path: Path, size: int) -> tuple[C3DHeader, bytes]:
+    """The parsed header and the parameter space: every block from the parameter block to the data start.
+
+    The block count in the parameter-section header (its byte 3) must fit in the file, but it is only a
+    size hint: some writers fill more blocks than they declare (c3d.org sample15 ``FP1.C3D``, from Peak
+    Performance, declares 3 blocks and its ``ANALOG:UNITS`` record crosses into block 4, its records
+    end in block 6, before the data at block 7). Readers (ezc3d included) follow the records to the
+    last one, so the records may use the whole space before the data; each must still fit in it.
+    """
     with path.open("rb") as fh:
         head = fh.read(BLOCK)
         if head[1] != C3D_KEY:
@@ -112,23 +162,24 @@ def _read_sections(path: Path, size: int) -> tuple[bytes, bytes]:
             raise FormatError(path, f"truncated or corrupt: the parameter section (block {head[0]}) "
                                     f"is outside the file ({size} bytes)")
         fh.seek(start)
-        section = fh.read(4)
-        blocks = section[2]
-        if blocks == 0 or start + blocks * BLOCK > size:
-            raise FormatError(path, f"truncated or corrupt: the parameter section ({blocks} blocks from "
-                                    f"block {head[0]}) does not fit in the file ({size} bytes)")
+        header = _parse_header(head, fh.read(4), path)
+        if header.param_blocks == 0 or start + header.param_blocks * BLOCK > size:
+            raise FormatError(path, f"truncated or corrupt: the parameter section ({header.param_blocks} "
+                                    f"blocks from block {head[0]}) does not fit in the file ({size} bytes)")
         fh.seek(start)
-        return head, fh.read(blocks * BLOCK)
+        return header, fh.read(min((header.data_start - header.param_block) * BLOCK, size - start))
 
 
-def _parse_header(head: bytes, section: bytes, path: Path) -> C3DHeader:
-    processor = section[3]
+def _parse_header(head: bytes, intro: bytes, path: Path) -> C3DHeader:
+    """The 512-byte header ``head`` and the 4-byte parameter-section header ``intro`` (block count,
+    processor type)."""
+    processor = intro[3]
     if processor not in PROCESSORS:
         raise FormatError(path, f"corrupt C3D: unknown processor type {processor} (expected 84, 85 or 86)")
     words = struct.unpack(f"{PROCESSORS[processor]}9H", head[2:20])
     header = C3DHeader(
         param_block=head[0],
-        param_blocks=section[2],
+        param_blocks=intro[2],
         processor=processor,
         points=words[0],
         first_frame=words[2],
@@ -137,6 +188,7 @@ def _parse_header(head: bytes, section: bytes, path: Path) -> C3DHeader:
         data_start=words[7],
         analog_samples=words[8],
         rate=_float32(head[20:24], processor),
+        scale=_float32(head[12:16], processor),
     )
     if header.data_start < header.param_block + header.param_blocks:
         raise FormatError(path, f"corrupt C3D: data start block {header.data_start} lies inside the "
@@ -145,13 +197,21 @@ def _parse_header(head: bytes, section: bytes, path: Path) -> C3DHeader:
     return header
 
 
-def _float32(raw: bytes, processor: int) -> float:
-    """A 4-byte float in the file's layout (Intel / DEC / MIPS), as ezc3d decodes it."""
-    if processor == 86:
-        return float(struct.unpack(">f", raw)[0])
+def decode_float32(raw: bytes, processor: int) -> np.ndarray:
+    """4-byte floats in the file's layout, ``(len(raw) // 4,)`` float32 values as float64: IEEE
+    little-endian (Intel, 84), big-endian (SGI/MIPS, 86) or DEC (85: 16-bit words swapped, exponent 2
+    higher; a zero exponent byte gives 0), as ezc3d decodes them. Signalling NaNs become quiet NaNs."""
+    b = np.frombuffer(raw, dtype=np.uint8, count=len(raw) // 4 * 4).reshape(-1, 4)
     if processor == 85:
-        raw = bytes([raw[2], raw[3], raw[0], (raw[1] - 1) & 0xFF if raw[1] else 0])
-    return float(struct.unpack("<f", raw)[0])
+        b = b[:, [2, 3, 0, 1]]  # a copy
+        b[:, 3] = np.where(b[:, 3] > 0, b[:, 3] - 1, 0)
+    with np.errstate(invalid="ignore"):  # widening a signalling NaN sets the invalid flag
+        return np.ascontiguousarray(b).view(">f4" if processor == 86 else "<f4").ravel().astype(np.float64)
+
+
+def _float32(raw: bytes, processor: int) -> float:
+    """One 4-byte float in the file's layout (Intel / DEC / MIPS), as ezc3d decodes it."""
+    return float(decode_float32(raw, processor)[0])
 
 
 def _walk_parameters(section: bytes, processor: int, path: Path) -> dict[tuple[str, str], C3DParam]:
@@ -162,7 +222,7 @@ def _walk_parameters(section: bytes, processor: int, path: Path) -> dict[tuple[s
     pos, groups, raw = 4, {}, []
     while True:
         if pos + 2 > len(section):
-            raise FormatError(path, "corrupt C3D: the parameter section runs past its declared blocks")
+            raise FormatError(path, "corrupt C3D: the parameter records run into the data or past the end of the file")
         n_chars, gid = struct.unpack("bb", section[pos:pos + 2])
         if n_chars == 0 or gid == 0:
             break
@@ -247,19 +307,31 @@ def _param_int(params: dict[tuple[str, str], C3DParam], key: tuple[str, str], de
     return int(value[0])
 
 
-def _check_data_size(h: C3DHeader, params: dict[tuple[str, str], C3DParam], size: int, path: Path) -> None:
-    """The data the parameters declare (as ezc3d sizes it) must fit in the file."""
+def _data_layout(h: C3DHeader, params: dict[tuple[str, str], C3DParam], size: int, path: Path) -> C3DLayout:
+    """The data the parameters declare (as ezc3d sizes it) must fit in the file.
+
+    One exception: when POINT:FRAMES runs past the end of the file but the header's frame count ends
+    exactly where the file does (within the padding of the last block), the header is right and
+    POINT:FRAMES wrong (c3d.org sample13 ``Dance.c3d``: 500 declared, 499 stored and in the header);
+    that count is kept and ezc3d, which would read past the end of the file, is not given the file.
+    """
     points = _param_int(params, ("POINT", "USED"), h.points, h.processor, path)
     frames = _frame_count(h, params)
     channels = _param_int(params, ("ANALOG", "USED"), 0, h.processor, path)
     samples = _analog_samples(h, params, path)
     if points > 65535 or channels > 65535:
         raise FormatError(path, f"corrupt C3D: {points} points / {channels} analog channels declared")
-    frame_bytes = (4 * points + channels * samples) * (4 if h.is_float else 2)
-    need = (h.data_start - 1) * BLOCK + frames * frame_bytes
-    if need > size:
-        raise FormatError(path, f"truncated: the file declares {frames} frames of {points} points and "
-                                f"{channels} analog channels ({need} bytes) but has {size} bytes")
+    layout = C3DLayout(h, params, points, frames, channels, samples,
+                       "SGI/MIPS storage, which ezc3d does not read" if h.processor == 86 else "")
+    end = layout.data_offset + frames * layout.frame_values * layout.value_bytes
+    if end <= size:
+        return layout
+    header_end = layout.data_offset + h.frames * layout.frame_values * layout.value_bytes
+    if 0 < h.frames < frames and 0 <= size - header_end < BLOCK:
+        return replace(layout, frames=h.frames, ezc3d_unsafe=f"POINT:FRAMES ({frames}) runs past the end of "
+                                                             f"the file, the header's {h.frames} frames fill it")
+    raise FormatError(path, f"truncated: the file declares {frames} frames of {points} points and "
+                            f"{channels} analog channels ({end} bytes) but has {size} bytes")
 
 
 def _frame_count(h: C3DHeader, params: dict[tuple[str, str], C3DParam]) -> int:
