@@ -414,3 +414,12 @@ def test_two_roots(tmp_path: Path) -> None:
 
 def test_missing_file(tmp_path: Path) -> None:
     _raises(tmp_path / "nope.bvh", "no such file")
+
+
+def test_unit_guess_ignores_a_locomotion_root_far_from_the_body() -> None:
+    """Bandai-Namco's dataset-2 rig puts the hips 427 units from a floor root: the body is still 184 cm tall,
+    the same unit as its dataset-1 sibling (the rest height counts the subtree of the first branching joint)."""
+    far = read_bvh(data_path("other/bvh/bandai_namco/dataset-2_walk_elderly_004.bvh")).skeleton
+    near = read_bvh(data_path("other/bvh/bandai_namco/dataset-1_walk_normal_001.bvh")).skeleton
+    assert far.unit_cm == near.unit_cm == 1.0
+    assert "184" in far.unit_note

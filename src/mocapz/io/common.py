@@ -59,12 +59,26 @@ def guess_unit_cm(height: float) -> tuple[float | None, str]:
 
 
 def rest_height(skeleton: Skeleton) -> float:
-    """Largest extent of the rest pose (all channels zero, offsets only) along any axis, in file units."""
+    """Largest extent of the body in the rest pose (all channels zero, offsets only) along any axis, in file
+    units.
+
+    The body is the subtree of the first joint that branches: a chain of helper joints above it (a
+    locomotion root on the floor, far from the hips, as in the Bandai-Namco rigs) does not count.
+    """
     from mocapz.model.kinematics import chain
 
     rot = np.broadcast_to(np.eye(3), (1, skeleton.n_joints, 3, 3)).copy()
     pos, _ = chain(skeleton, rot, skeleton.offsets[None].copy())
-    return float(np.ptp(pos[0], axis=0).max())
+    parents = skeleton.parents
+    top = 0
+    while (kids := np.flatnonzero(parents == top)).size == 1:
+        top = int(kids[0])
+    inside = np.zeros(skeleton.n_joints, dtype=bool)
+    inside[top] = True
+    for j in range(top + 1, skeleton.n_joints):  # parents come before children
+        inside[j] = parents[j] >= 0 and inside[parents[j]]
+    ends = np.array([inside[j] for j, _, _ in skeleton.end_sites], dtype=bool)
+    return float(np.ptp(pos[0][np.concatenate([inside, ends])], axis=0).max())
 
 
 def atomic_write(path: str | os.PathLike[str], write: Callable[[Path], None], force: bool = False) -> None:
