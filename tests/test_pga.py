@@ -17,6 +17,7 @@ from mocapz.codecs.pga.params import PGASettings
 from mocapz.edit import edit, effector_trajectories
 from mocapz.errors import OptionError, TargetError
 from mocapz.model.kinematics import forward_kinematics, local_rotations, local_translations
+from mocapz.model.skeleton import Skeleton
 
 
 @pytest.fixture(scope="module")
@@ -184,3 +185,17 @@ def test_bad_parameters(run_clip: mocapz.Motion, options: dict) -> None:
 def test_impossible_target(run_clip: mocapz.Motion) -> None:
     with pytest.raises(TargetError):
         mocapz.compress(run_clip.slice(0, 40), codec="pga", max_distortion=1e-9)
+
+
+@pytest.mark.parametrize("frames", [0, 1, 5])
+def test_small_skeleton_short_clips_decode(frames: int) -> None:
+    """A 3-joint skeleton (6-dimensional pose): a 0-frame clip keeps the default 12 geodesics, which the
+    decoder's checks of the stored settings must not take for damage (they apply to kept frames only)."""
+    rot = ("Zrotation", "Xrotation", "Yrotation")
+    sk = Skeleton(names=["r", "a", "b"], parents=np.array([-1, 0, 1]),
+                  offsets=np.array([[0.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 1.0, 0.0]]),
+                  channels=[("Xposition", "Yposition", "Zposition", *rot), rot, rot], rotation_order=["ZXY"] * 3,
+                  end_sites=[(2, np.array([0.0, 1.0, 0.0]), "tip")])
+    motion = mocapz.Motion(sk, np.random.default_rng(0).normal(size=(frames, 12)), 30.0)
+    back = mocapz.decompress(mocapz.compress(motion, codec="pga"))
+    assert back.channels.shape == (frames, 12)

@@ -9,6 +9,8 @@ per marker (:func:`encode_mask`, small for long gaps).
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from mocapz.errors import FormatError
@@ -57,10 +59,8 @@ def pack_mask(mask: np.ndarray) -> bytes:
 
 def unpack_mask(data: bytes, shape: tuple[int, ...]) -> np.ndarray:
     """Inverse of :func:`pack_mask` for a mask of ``shape``."""
-    flat = np.unpackbits(unpack_uint64(data).astype(np.uint8))
-    size = int(np.prod(shape))
-    if flat.size < size:
-        raise FormatError(None, "corrupted gap mask")
+    size = math.prod(shape)
+    flat = np.unpackbits(unpack_uint64(data, -(-size // 8)).astype(np.uint8))
     return flat[:size].astype(bool).reshape(shape)
 
 
@@ -82,10 +82,10 @@ def encode_mask(missing: np.ndarray) -> bytes:
 
 def decode_mask(data: bytes, frames: int, markers: int) -> np.ndarray:
     """Inverse of :func:`encode_mask`: ``(T, M)`` True where missing."""
-    v = unpack_uint64(data).astype(np.int64)
-    if v.size < markers:
+    v = unpack_uint64(data, at_most=markers * (frames + 2))  # a marker has at most frames + 1 runs
+    if v.size < markers or np.any(v[:markers] > frames + 1) or np.any(v[markers:] > frames):
         raise FormatError(None, "corrupted gap mask")
-    counts, runs = v[:markers], v[markers:]
+    counts, runs = v[:markers].astype(np.int64), v[markers:].astype(np.int64)
     if counts.sum() != runs.size:
         raise FormatError(None, "corrupted gap mask (run count)")
     out = np.zeros((frames, markers), dtype=bool)

@@ -27,6 +27,7 @@ CODER_ZSTD = 2  # zstd on zig-zag byte planes
 
 LIMIT = (1 << 15) - 1  # |symbol| < LIMIT coded directly; LIMIT marks an escape
 BLOCK = 256  # rows per scale block
+MAX_COUNT = 1 << 31  # most values in one integer stream
 SCALE_STEPS = 8  # scale quantisation: s = 2 ** ((q - 64) / 8)
 
 
@@ -55,6 +56,8 @@ def read_uvarint(buf: bytes | memoryview, pos: int) -> tuple[int, int]:
         pos += 1
         value |= (b & 0x7F) << shift
         if not b & 0x80:
+            if value >> 64:
+                raise FormatError(None, "corrupted data (varint over 64 bits)")
             return value, pos
         shift += 7
         if shift > 63:
@@ -99,15 +102,30 @@ def safe_zstd_decompress(data: bytes, limit: int, what: str) -> bytes:
     return out
 
 
-def unpack_uint64(buf: bytes) -> np.ndarray:
+def zstd_capacity(size: int) -> int:
+    """The most bytes a zstd frame of ``size`` bytes can hold: every block of at most 128 KiB costs at least its
+    3-byte header, so a count claiming more than this is damage, whatever the frame says."""
+    return (size // 3 + 1) << 17
+
+
+def unpack_uint64(buf: bytes, count: int | None = None, *, at_most: int = MAX_COUNT) -> np.ndarray:
+    """Inverse of :func:`pack_uint64`.
+
+    ``count`` is the number of values the caller expects (from the header or an earlier section), else there
+    are at most ``at_most``; a stream claiming anything else is a FormatError before anything is decompressed.
+    """
     n, pos = read_uvarint(buf, 0)
     if pos >= len(buf):
         raise FormatError(None, "truncated integer stream")
-    if n > 1 << 31:
-        raise FormatError(None, "corrupted integer stream (absurd count)")
+    if count is not None and n != count:
+        raise FormatError(None, f"corrupted integer stream ({n} values where {count} are expected)")
+    if n > at_most:
+        raise FormatError(None, f"corrupted integer stream ({n} values, at most {at_most} expected)")
     nbytes = buf[pos]
     if not 1 <= nbytes <= 8:
         raise FormatError(None, "corrupted integer stream (bad byte width)")
+    if n * nbytes > zstd_capacity(len(buf) - pos - 1):
+        raise FormatError(None, f"corrupted integer stream ({n} values cannot fit in {len(buf)} bytes)")
     raw = safe_zstd_decompress(bytes(buf[pos + 1 :]), n * nbytes, "integer stream")
     if len(raw) != n * nbytes:
         raise FormatError(None, "corrupted integer stream (wrong length)")
@@ -168,20 +186,24 @@ def encode_int_matrix(values: np.ndarray, coder: int | None = None) -> bytes:
     )
 
 
-def decode_int_matrix(data: bytes) -> np.ndarray:
-    """Inverse of :func:`encode_int_matrix`: the ``(rows, columns)`` int64 matrix."""
+def decode_int_matrix(data: bytes, shape: tuple[int, int] | None = None) -> np.ndarray:
+    """Inverse of :func:`encode_int_matrix`: the ``(rows, columns)`` int64 matrix.
+
+    ``shape`` is the shape the caller expects (a stream claiming another is a FormatError before anything is
+    decoded); without it, the stream's own shape is bounded by its size.
+    """
     buf = memoryview(data)
     if len(buf) < 3:
         raise FormatError(None, "truncated integer stream")
     coder = buf[0]
     rows, pos = read_uvarint(buf, 1)
     cols, pos = read_uvarint(buf, pos)
+    if shape is not None and (rows, cols) != tuple(shape):
+        raise FormatError(None, f"corrupted integer stream (shape {(rows, cols)} where {tuple(shape)} is expected)")
     if rows * cols > 1 << 34:
         raise FormatError(None, "corrupted integer stream (absurd size)")
     if coder == CODER_ZSTD:
-        flat = unzigzag(unpack_uint64(bytes(buf[pos:])))
-        if flat.size != rows * cols:
-            raise FormatError(None, "corrupted integer stream (wrong count)")
+        flat = unzigzag(unpack_uint64(bytes(buf[pos:]), rows * cols))
         return flat.reshape(cols, rows).T.copy()
     if coder != CODER_RANGE:
         raise FormatError(None, f"unknown entropy coder id {coder}")
@@ -212,8 +234,5 @@ def decode_int_matrix(data: bytes) -> np.ndarray:
     if esc_pos.any():
         if not esc_bytes:
             raise FormatError(None, "corrupted integer stream (escapes missing)")
-        vals = unzigzag(unpack_uint64(esc_bytes))
-        if vals.size != int(esc_pos.sum()):
-            raise FormatError(None, "corrupted integer stream (escape count)")
-        sym[esc_pos] = vals
+        sym[esc_pos] = unzigzag(unpack_uint64(esc_bytes, int(esc_pos.sum())))
     return sym

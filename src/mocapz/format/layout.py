@@ -15,6 +15,7 @@ import zstandard
 
 from mocapz.errors import FormatError
 from mocapz.format.entropy import read_uvarint, unzigzag, write_uvarint, zigzag
+from mocapz.format.layout_check import check_layout, check_offset_names
 from mocapz.io.common import detect_decimals
 from mocapz.model.header import KEPT_METADATA, ClipHeader
 from mocapz.model.motion import AnyMotion, Motion
@@ -163,48 +164,24 @@ def decode_layout(data: bytes) -> dict[str, Any]:
         _unpack_offsets(d, block)
     elif block:
         raise FormatError(None, "corrupted layout header (trailing bytes)")
-    _check_layout(d)
+    check_layout(d)
     return d
 
 
 def _unpack_offsets(d: dict[str, Any], block: bytes) -> None:
-    try:
-        joints, ends, q = len(d["names"]), d["end_sites"], int(d["num_dec"])
-        count = 3 * (joints + len(ends))
-        vals, pos = [], 0
-        for _ in range(count):
-            v, pos = read_uvarint(block, pos)
-            vals.append(v)
-    except (KeyError, TypeError, ValueError) as exc:
-        raise FormatError(None, f"corrupted layout header ({exc})") from None
-    if pos != len(block) or not 0 <= q <= 9:
+    count = check_offset_names(d)
+    q = d.pop("num_dec")
+    vals, pos = [], 0
+    for _ in range(3 * count):
+        v, pos = read_uvarint(block, pos)
+        vals.append(v)
+    if pos != len(block):
         raise FormatError(None, "corrupted layout header (offset block)")
-    del d["num_dec"]
+    joints, ends = len(d["names"]), d["end_sites"]
     nums = unzigzag(np.asarray(vals, dtype=np.uint64)) / 10.0**q
     d["offsets"] = nums[: 3 * joints].reshape(joints, 3).tolist()
     d["end_sites"] = [[j, nums[3 * joints + 3 * i : 3 * joints + 3 * i + 3].tolist(), name]
                       for i, (j, name) in enumerate(ends)]
-
-
-def _check_layout(d: dict[str, Any]) -> None:
-    """Reject layouts whose numbers would make decoders allocate absurdly or divide by zero."""
-    try:
-        frames = int(d["frames"])
-        rate = float(d["frame_rate"])
-        width = len(d["names"]) if d["kind"] == "skeleton" else len(d["labels"])
-        if d["kind"] == "skeleton":
-            n = len(d["names"])
-            if any(not 0 <= int(j) < n for j, _, _ in d["end_sites"]):
-                raise FormatError(None, "corrupted layout header (end site on an unknown joint)")
-            dec = d.get("decimals")
-            if dec is not None and any(not 0 <= int(x) <= 15 for x in dec):
-                raise FormatError(None, "corrupted layout header (decimals out of range)")
-    except (KeyError, TypeError, ValueError) as exc:
-        raise FormatError(None, f"corrupted layout header ({exc})") from None
-    if not 0 <= frames <= 1 << 28 or frames * max(width, 1) * 6 > 1 << 33:
-        raise FormatError(None, f"corrupted layout header (implausible frame count {frames})")
-    if not (rate > 0 and np.isfinite(rate)):
-        raise FormatError(None, f"corrupted layout header (frame rate {rate})")
 
 
 def decode_header(data: bytes) -> ClipHeader:

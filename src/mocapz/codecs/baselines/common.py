@@ -90,7 +90,7 @@ def finish(header: ClipHeader, x: np.ndarray, gaps: np.ndarray | None, round_dec
         else:
             motion.decimals = None
         return motion
-    pos = x.reshape(frames, -1, 3)
+    pos = x.reshape(header.value_shape)
     if gaps is not None:
         pos = np.where(gaps[..., None], np.nan, pos)
     motion = header.motion(pos)
@@ -117,11 +117,15 @@ def f32_bytes(a: np.ndarray) -> bytes:
 
 
 def f32_array(data: bytes, shape: tuple[int, ...]) -> np.ndarray:
-    """Inverse of :func:`f32_bytes` as float64, checking the size."""
-    n = int(np.prod(shape)) if shape else 1
+    """Inverse of :func:`f32_bytes` as float64, checking the size and that every value is finite (encoders
+    write finite values only)."""
+    n = math.prod(shape)
     if len(data) != 4 * n:
         raise FormatError(None, f"corrupted float32 block ({len(data)} bytes for {n} values)")
-    return np.frombuffer(data, dtype="<f4").astype(np.float64).reshape(shape)
+    values = np.frombuffer(data, dtype="<f4")
+    if not np.isfinite(values).all():
+        raise FormatError(None, "corrupted float32 block (values not finite)")
+    return values.astype(np.float64).reshape(shape)
 
 
 def uvarints(*values: int) -> bytes:

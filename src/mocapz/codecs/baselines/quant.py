@@ -181,19 +181,21 @@ def decode(sections: dict[str, bytes], header: ClipHeader) -> AnyMotion:
     frames = header.frames
     cols, _, _ = layout_columns(header)
     try:
-        code = unpack_uint64(sections["code"])
-        bits = unpack_uint64(sections["bits"])
-        qmin = unzigzag(unpack_uint64(sections["qmin"]))
-        if code.size != cols or bits.size != cols or qmin.size != cols or np.any(code > 255):
-            raise FormatError(None, "corrupted quant stream (track headers)")
+        code = unpack_uint64(sections["code"], cols)
+        bits = unpack_uint64(sections["bits"], cols)
+        qmin = unzigzag(unpack_uint64(sections["qmin"], cols))
+        if np.any(code > 255):
+            raise FormatError(None, "corrupted quant stream (track step codes)")
         act = bits > 0
+        n_act = int(act.sum())
+        moving = None
+        if n_act and frames:  # read (and checked against the header) before frames x columns are allocated
+            q0 = unpack_uint64(sections["q0"], n_act).astype(np.int64)
+            dq = decode_int_matrix(sections["dq"], (frames - 1, n_act))
+            moving = qmin[act] + q0 + np.concatenate([np.zeros((1, n_act), np.int64), np.cumsum(dq, axis=0)])
         q = np.broadcast_to(qmin, (frames, cols)).copy()
-        if act.any() and frames:
-            q0 = unpack_uint64(sections["q0"]).astype(np.int64)
-            dq = decode_int_matrix(sections["dq"])
-            if q0.size != int(act.sum()) or dq.shape != (frames - 1, int(act.sum())):
-                raise FormatError(None, "corrupted quant stream (sample count)")
-            q[:, act] = qmin[act] + q0 + np.concatenate([np.zeros((1, q0.size), np.int64), np.cumsum(dq, axis=0)])
+        if moving is not None:
+            q[:, act] = moving
     except KeyError as exc:
         raise FormatError(None, f"corrupted quant stream (missing section {exc})") from None
     x = q * step_of(code)

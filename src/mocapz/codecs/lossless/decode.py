@@ -28,52 +28,50 @@ def decode(sections: dict[str, bytes], header: ClipHeader) -> Any:
     frames = header.frames
     cols, groups = _groups(header)
     try:
-        rep = sections["rep"][0]
-        if rep not in REPRESENTATIONS:
-            raise FormatError(None, f"corrupted lossless stream (unknown representation {rep})")
+        rep = sections["rep"]
+        if len(rep) != 1 or rep[0] not in REPRESENTATIONS:
+            raise FormatError(None, f"corrupted lossless stream (representation {rep[:8].hex() or 'missing'})")
+        gaps = unpack_mask(sections["gaps"], (frames, cols)) if "gaps" in sections else None
         x = _decode_ints(sections, frames, cols, groups)
     except KeyError as exc:
         raise FormatError(None, f"corrupted lossless stream (missing section {exc})") from None
     decimals = None
-    if rep == REP_DECIMAL:
+    if rep[0] == REP_DECIMAL:
         dec = header.decimals
         if dec is None:
             raise FormatError(None, "corrupted lossless stream (decimals missing)")
         decimals = np.broadcast_to(np.asarray(dec, dtype=np.int64), (cols,))
-    values = from_integers(rep, x, decimals)
-    if "gaps" in sections:
-        gaps = unpack_mask(sections["gaps"], (frames, cols))
+    values = from_integers(rep[0], x, decimals)
+    if gaps is not None:
         values = np.where(gaps, np.nan, values)
     return header.motion(values.reshape(header.value_shape))
 
 
 def _decode_ints(sections: dict[str, bytes], frames: int, cols: int, groups: list[list[int]]) -> np.ndarray:
-    x = np.zeros((frames, cols), dtype=np.int64)
+    """The ``(frames, cols)`` integers; every stream is checked against the header before they are allocated."""
     if frames == 0:
-        return x
-    const = np.unpackbits(unpack_uint64(sections["const"]).astype(np.uint8))[:cols].astype(bool)
-    head = unzigzag(unpack_uint64(sections["head"]))
+        return np.zeros((0, cols), dtype=np.int64)
+    const = unpack_mask(sections["const"], (cols,))  # packed bits, as pack_mask writes them
     active = np.flatnonzero(~const)
-    if head.size != cols + (active.size if frames > 1 else 0):
-        raise FormatError(None, "corrupted lossless stream (head size)")
-    x[:] = head[:cols]
+    head = unzigzag(unpack_uint64(sections["head"], cols + (active.size if frames > 1 else 0)))
+    d1 = head[cols:]
+    d2 = None
+    if frames > 2 and active.size:
+        order = predictor_columns([[c for c in g if not const[c]] for g in groups if any(not const[c] for c in g)])
+        residual = decode_int_matrix(sections["res"], (frames - 2, len(order)))
+        coefs = unzigzag(unpack_uint64(sections["coef"], sum(len(p) for _, p in order)))
+        d2 = np.zeros((frames - 2, cols), dtype=np.int64)
+        pos = 0
+        for k, (c, preds) in enumerate(order):
+            coef = coefs[pos : pos + len(preds)]
+            pos += len(preds)
+            d2[:, c] = residual[:, k] + cross_term(d2, preds, coef)
+    x = np.broadcast_to(head[:cols], (frames, cols)).copy()
     if frames == 1:
         return x
-    d1 = head[cols:]
-    if frames == 2 or active.size == 0:
+    if d2 is None:
         x[1, active] += d1
         return x
-    order = predictor_columns([[c for c in g if not const[c]] for g in groups if any(not const[c] for c in g)])
-    residual = decode_int_matrix(sections["res"])
-    coefs = unzigzag(unpack_uint64(sections["coef"]))
-    if residual.shape != (frames - 2, len(order)) or coefs.size != sum(len(p) for _, p in order):
-        raise FormatError(None, "corrupted lossless stream (residual shape)")
-    d2 = np.zeros((frames - 2, cols), dtype=np.int64)
-    pos = 0
-    for k, (c, preds) in enumerate(order):
-        coef = coefs[pos : pos + len(preds)]
-        pos += len(preds)
-        d2[:, c] = residual[:, k] + cross_term(d2, preds, coef)
     slopes = np.concatenate([d1[None, :], d1[None, :] + np.cumsum(d2[:, active], axis=0)], axis=0)
     x[1:, active] = x[0, active] + np.cumsum(slopes, axis=0)
     return x

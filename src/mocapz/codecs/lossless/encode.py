@@ -49,7 +49,7 @@ def encode(motion: AnyMotion, **options: object) -> dict[str, bytes]:
     const = (x == x[0]).all(axis=0)
     d1 = (x[1] - x[0])[~const] if frames > 1 else np.zeros(0, dtype=np.int64)
     sections["head"] = pack_uint64(zigzag(np.concatenate([x[0], d1])))
-    sections["const"] = pack_uint64(np.packbits(const).astype(np.uint64))
+    sections["const"] = pack_mask(const)
     if frames <= 2 or const.all():
         return sections
     d2 = x[2:] - 2 * x[1:-1] + x[:-2]

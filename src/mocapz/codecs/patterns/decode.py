@@ -24,9 +24,14 @@ def params_bytes(heading: bool, up: int) -> bytes:
     return bytes([FLAG_HEADING if heading else 0, up])
 
 
+def members_of(header: ClipHeader) -> int:
+    """The number of markers or joints a clip's hierarchy divides."""
+    return len(header.labels) if header.skeleton is None else header.skeleton.n_joints
+
+
 def decode(sections: dict[str, bytes], header: ClipHeader) -> Any:
     """Decode a single-clip ``.mcz`` payload into a Motion / MarkerMotion."""
-    hier = Hierarchy.from_bytes(_need(sections, "h"))
+    hier = Hierarchy.from_bytes(_need(sections, "h"), members_of(header))
     if header.frames == 0:
         return decode_clip(header, hier, sections, {})
     dbs = {k: decode_patterns(_need(sections, f"d{k}"))[0] for k in range(1, len(hier.nodes))}
@@ -58,11 +63,15 @@ def decode_clip(header: ClipHeader, hier: Hierarchy, sections: dict[str, bytes],
     return header.motion(_decode_skeletal(header, hier, sections, dbs, priors, frames))
 
 
-def _node_values(k: int, hier: Hierarchy, sections: dict[str, bytes], dbs: dict[int, np.ndarray],
+def _node_values(k: int, width: int, sections: dict[str, bytes], dbs: dict[int, np.ndarray],
                  priors: dict[int, np.ndarray] | None, frames: int, observed: np.ndarray | None = None) -> np.ndarray:
+    """Node ``k``'s decoded values ``(frames, width)``."""
     patterns = dbs[k]
+    if patterns.shape[2] != width:
+        raise FormatError(None, f"corrupted pattern stream (node {k} has patterns of {patterns.shape[2]} values "
+                                f"where its members have {width})")
     labels, lengths = decode_segments(_need(sections, f"s{k}"), len(patterns),
-                                      None if priors is None else priors.get(k))
+                                      None if priors is None else priors.get(k), frames)
     if int(lengths.sum()) != frames:
         raise FormatError(None, f"corrupted pattern stream (node {k} covers {int(lengths.sum())} of {frames} frames)")
     return reconstruct(patterns, labels, lengths, observed)
@@ -70,10 +79,11 @@ def _node_values(k: int, hier: Hierarchy, sections: dict[str, bytes], dbs: dict[
 
 def _decode_markers(header, hier, sections, dbs, priors, frames) -> np.ndarray:
     m = len(header.labels)
-    flags, up = _need(sections, "p")[:2]
-    root, _ = decode_trajectory(_need(sections, "r"))
-    if root.shape[0] != frames:
-        raise FormatError(None, "corrupted pattern stream (root trajectory length)")
+    params = _need(sections, "p")
+    if len(params) != 2 or params[0] & ~FLAG_HEADING or params[1] > 2:
+        raise FormatError(None, f"corrupted pattern stream (parameters {params[:8].hex()})")
+    flags, up = params
+    root, _ = decode_trajectory(_need(sections, "r"), (frames, 4 if flags & FLAG_HEADING else 3))
     yaw = root[:, 3] if flags & FLAG_HEADING else None
     missing = decode_mask(sections["g"], frames, m) if "g" in sections else None
     out = np.zeros((frames, m, 3))
@@ -81,7 +91,8 @@ def _decode_markers(header, hier, sections, dbs, priors, frames) -> np.ndarray:
     for k, node in enumerate(hier.nodes[1:], start=1):
         ref = hier.nodes[node.parent].reference
         obs = None if missing is None or not missing[:, node.members].any() else ~missing[:, node.members]
-        x = _node_values(k, hier, sections, dbs, priors, frames, obs).reshape(frames, len(node.members), 3)
+        x = _node_values(k, 3 * len(node.members), sections, dbs, priors, frames, obs)
+        x = x.reshape(frames, len(node.members), 3)
         if yaw is not None:
             x = rotate(x, yaw, up)
         out[:, node.members] = x + out[:, ref][:, None]
@@ -94,8 +105,9 @@ def _decode_skeletal(header, hier, sections, dbs, priors, frames) -> np.ndarray:
     sk = header.skeleton
     const = sections.get("c", b"")
     sf = SkeletalFeatures(sk, 0.0, SkeletalFeatures.varying_from(const, sk.n_channels))
+    root = sf.decode_root(_need(sections, "r"), frames)  # checked against the frame count before allocating
     out = sf.apply_constants(np.zeros((frames, sk.n_channels)), const)
-    out[:, sf.root_columns] = sf.decode_root(_need(sections, "r"), frames)
+    out[:, sf.root_columns] = root
     for k, node in enumerate(hier.nodes[1:], start=1):
-        sf.put_node(out, node.members, _node_values(k, hier, sections, dbs, priors, frames))
+        sf.put_node(out, node.members, _node_values(k, sf.width(node.members), sections, dbs, priors, frames))
     return out

@@ -85,7 +85,9 @@ class Hierarchy:
         return bytes(out)
 
     @classmethod
-    def from_bytes(cls, data: bytes) -> Hierarchy:
+    def from_bytes(cls, data: bytes, n_members: int | None = None) -> Hierarchy:
+        """Inverse of :meth:`to_bytes`; with ``n_members`` (the clip's marker or joint count) the hierarchy is
+        also checked against it (:meth:`validate`). Damage is a FormatError."""
         try:
             count, pos = read_uvarint(data, 0)
             named = data[pos]
@@ -107,7 +109,14 @@ class Hierarchy:
                 nodes.append(Node(name, members, parent - 1, members[ref]))
         except (IndexError, UnicodeDecodeError) as exc:
             raise FormatError(None, f"corrupted pattern hierarchy ({exc})") from None
-        return cls(nodes)
+        hier = cls(nodes)
+        if n_members is not None:
+            try:
+                hier.validate(n_members)
+            except MocapzError as exc:
+                raise FormatError(None, f"corrupted pattern hierarchy ({exc.message.removeprefix('hierarchy: ')})") \
+                    from None
+        return hier
 
 
 def topological(nodes: list[Node]) -> Hierarchy:

@@ -22,7 +22,7 @@ from typing import Any
 import numpy as np
 
 from mocapz.codecs.patterns.bodies import code_clips
-from mocapz.codecs.patterns.decode import decode_clip
+from mocapz.codecs.patterns.decode import decode_clip, members_of
 from mocapz.codecs.patterns.encode import target_from
 from mocapz.codecs.patterns.hierarchy import Hierarchy
 from mocapz.codecs.patterns.options import settings_from
@@ -160,9 +160,9 @@ def decode_member(header: ClipHeader, shared: Mapping[str, bytes], own: dict[str
 
     A missing shared section raises whatever ``shared[key]`` raises (the library reader names it).
     """
-    hier = Hierarchy.from_bytes(shared["h"])
+    hier = Hierarchy.from_bytes(shared["h"], members_of(header))
     dbs, priors = {}, {}
     for k in range(1, len(hier.nodes)):
         dbs[k] = decode_patterns(shared[f"d{k}"])[0]
-        priors[k] = unpack_uint64(shared[f"u{k}"]).astype(np.int64)
+        priors[k] = unpack_uint64(shared[f"u{k}"], len(dbs[k])).astype(np.int64)
     return decode_clip(header, hier, own, dbs, priors)

@@ -100,28 +100,32 @@ def encode_patterns(patterns: np.ndarray, step: float, sigma: float = 0.0) -> tu
 
 
 def decode_patterns(data: bytes) -> tuple[np.ndarray, int]:
-    """Inverse of :func:`encode_patterns`: patterns ``(K, L, D)`` and the bytes consumed."""
+    """Inverse of :func:`encode_patterns`: patterns ``(K, L, D)`` and the bytes consumed.
+
+    The symbols are decoded (their streams checked against ``K``, ``L`` and ``D``, and bounded by their own
+    size) before the database is allocated.
+    """
     k, pos = read_uvarint(data, 0)
     length, pos = read_uvarint(data, pos)
     d, pos = read_uvarint(data, pos)
-    if pos + 8 > len(data) or k * length * d > 1 << 31:
-        raise FormatError(None, "truncated pattern database")
+    if pos + 8 > len(data) or k * length * d > 1 << 31 or (k and not length):
+        raise FormatError(None, "corrupted pattern database (header)")
     (step,) = struct.unpack("<d", data[pos : pos + 8])
+    if not (np.isfinite(step) and step > 0):
+        raise FormatError(None, f"corrupted pattern database (step {step})")
     sigma = data[pos + 8] / 10.0 if pos + 8 < len(data) else 0.0
     pos += 9
-    sym = np.zeros((k, length, d), dtype=np.int64)
-    if k:
+    if not k:
+        return np.zeros((0, length, d)), pos
+    raw, pos = _read_blob(data, pos)
+    first = decode_int_matrix(raw, (k, d))
+    resid = np.zeros((0, d), dtype=np.int64)
+    if length > 1:
         raw, pos = _read_blob(data, pos)
-        first = decode_int_matrix(raw)
-        if first.shape != (k, d):
-            raise FormatError(None, "corrupted pattern database (first frames)")
-        sym[:, 0] = first
-        if length > 1:
-            raw, pos = _read_blob(data, pos)
-            resid = decode_int_matrix(raw)
-            if resid.shape != (k * (length - 1), d):
-                raise FormatError(None, "corrupted pattern database (delta frames)")
-            sym[:, 1:] = np.cumsum(resid.reshape(k, length - 1, d), axis=1)
+        resid = decode_int_matrix(raw, (k * (length - 1), d))
+    sym = np.empty((k, length, d), dtype=np.int64)
+    sym[:, 0] = first
+    sym[:, 1:] = np.cumsum(resid.reshape(k, length - 1, d), axis=1)
     return _reconstruct(sym, step, sigma), pos
 
 
@@ -168,10 +172,15 @@ def _integrate(sym: np.ndarray) -> np.ndarray:
     return q
 
 
-def decode_trajectory(data: bytes) -> tuple[np.ndarray, int]:
-    """Inverse of :func:`encode_trajectory`: ``(T, C)`` values and the bytes consumed."""
+def decode_trajectory(data: bytes, shape: tuple[int, int] | None = None) -> tuple[np.ndarray, int]:
+    """Inverse of :func:`encode_trajectory`: ``(T, C)`` values and the bytes consumed.
+
+    ``shape``: the ``(T, C)`` the caller expects (checked before anything is decoded).
+    """
     t, pos = read_uvarint(data, 0)
     c, pos = read_uvarint(data, pos)
+    if shape is not None and (t, c) != tuple(shape):
+        raise FormatError(None, f"corrupted root trajectory (shape {(t, c)} where {tuple(shape)} is expected)")
     if pos + 8 * c > len(data):
         raise FormatError(None, "truncated root trajectory")
     step = np.asarray(struct.unpack(f"<{c}d", data[pos : pos + 8 * c]))
@@ -179,9 +188,7 @@ def decode_trajectory(data: bytes) -> tuple[np.ndarray, int]:
     if t == 0:
         return np.zeros((0, c)), pos
     raw, pos = _read_blob(data, pos)
-    s0 = unzigzag(unpack_uint64(raw))
+    s0 = unzigzag(unpack_uint64(raw, c))
     raw, pos = _read_blob(data, pos)
-    sym = decode_int_matrix(raw) if t > 1 else np.zeros((0, c), dtype=np.int64)
-    if s0.shape != (c,) or sym.shape != (t - 1, c):
-        raise FormatError(None, "corrupted root trajectory")
+    sym = decode_int_matrix(raw, (t - 1, c)) if t > 1 else np.zeros((0, c), dtype=np.int64)
     return _integrate(np.concatenate([s0[None], sym], axis=0)) * step, pos

@@ -104,24 +104,30 @@ def encode_segments(labels: np.ndarray, lengths: np.ndarray, k: int, prior: np.n
     return head + bytes([CODER_RANGE]) + enc.get_compressed().tobytes()
 
 
-def decode_segments(data: bytes, k: int, prior: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """Inverse of :func:`encode_segments`: ``(labels, lengths)``."""
+def decode_segments(data: bytes, k: int, prior: np.ndarray | None = None,
+                    frames: int | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Inverse of :func:`encode_segments`: ``(labels, lengths)``.
+
+    ``frames``: the clip's frame count, which bounds the segment count and the longest segment (checked
+    before the models are allocated).
+    """
     n, pos = read_uvarint(data, 0)
     top, pos = read_uvarint(data, pos)
-    if pos >= len(data) or n > 1 << 28 or top > 1 << 24:
-        raise FormatError(None, "corrupted segment stream")
+    most = min(1 << 28, frames if frames is not None else 1 << 28)
+    if pos >= len(data) or n > most or top > min(1 << 24, max(most, 1)):
+        raise FormatError(None, "corrupted segment stream (segment count or length)")
     coder = data[pos]
     body = data[pos + 1 :]
     if coder == CODER_ZSTD:
-        v = unpack_uint64(body).astype(np.int64)
-        if v.size != 2 * n:
-            raise FormatError(None, "corrupted segment stream")
-        labels, lengths = v[:n], v[n:]
+        v = unpack_uint64(body, 2 * n)
+        if np.any(v[n:] > most):
+            raise FormatError(None, "corrupted segment stream (frame count)")
+        labels, lengths = v[:n].astype(np.int64), v[n:].astype(np.int64)
     elif coder == CODER_RANGE:
         labels, lengths = _decode_range(body, n, top, k, prior)
     else:
         raise FormatError(None, "unknown segment stream coder")
-    if n and (labels.max() >= max(k, 1) or lengths.min() < 1):
+    if n and (labels.min() < 0 or labels.max() >= max(k, 1) or lengths.min() < 1):
         raise FormatError(None, "corrupted segment stream (pattern index or frame count)")
     return labels, lengths
 

@@ -17,9 +17,10 @@ import warnings
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from mocapz.codecs.gaps import pack_mask, unpack_mask
 from mocapz.codecs.patterns.quantise import decode_trajectory
 from mocapz.errors import FormatError
-from mocapz.format.entropy import pack_uint64, read_uvarint, unpack_uint64, write_uvarint
+from mocapz.format.entropy import read_uvarint, write_uvarint
 from mocapz.model.skeleton import Skeleton
 
 HEAD_TO_HEIGHT = 0.11  # ADDH / body height of the CMU subjects (01_01.c3d: 194 mm / ~1.75 m)
@@ -105,10 +106,7 @@ class SkeletalFeatures:
         return vals, steps
 
     def decode_root(self, data: bytes, frames: int) -> np.ndarray:
-        rec, _ = decode_trajectory(data)
-        if rec.shape != (frames, len(self.root_columns)):
-            raise FormatError(None, "corrupted root trajectory (shape)")
-        return rec
+        return decode_trajectory(data, (frames, len(self.root_columns)))[0]
 
     def constant_columns(self, channels: np.ndarray) -> bytes:
         """Exact values of the channels that are neither root, rotation nor varying positions."""
@@ -117,7 +115,7 @@ class SkeletalFeatures:
             return b""
         vals = channels[0, cols]
         return write_uvarint(cols.size) + struct.pack(f"<{cols.size}d", *vals) + \
-            pack_uint64(np.packbits(self.varying).astype(np.uint64))
+            pack_mask(self.varying)
 
     def constant_index(self) -> np.ndarray:
         coded = np.zeros(self.sk.n_channels, dtype=bool)
@@ -142,8 +140,7 @@ class SkeletalFeatures:
         if not data:
             return np.zeros(n_channels, dtype=bool)
         n, pos = read_uvarint(data, 0)
-        bits = unpack_uint64(data[pos + 8 * n :]).astype(np.uint8)
-        return np.unpackbits(bits)[:n_channels].astype(bool)
+        return unpack_mask(data[pos + 8 * n :], (n_channels,))
 
     # ------------------------------------------------------------ node values
     def node_features(self, channels: np.ndarray, members: list[int]) -> tuple[np.ndarray, np.ndarray]:
@@ -168,6 +165,11 @@ class SkeletalFeatures:
         if self.pos_cols[j]:
             out.append(channels[:, self.pos_cols[j]])
         return out
+
+    def width(self, members: list[int]) -> int:
+        """Number of values ``D`` of a node with these joints (:meth:`node_features`)."""
+        return sum((3 if len(self.rot_cols[j]) == 3 else len(self.rot_cols[j])) + len(self.pos_cols[j])
+                   for j in members)
 
     def put_node(self, out: np.ndarray, members: list[int], x: np.ndarray) -> None:
         """Write decoded node values ``(T, D)`` back into channel columns of ``out`` ``(T, channels)``."""

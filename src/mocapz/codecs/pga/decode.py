@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from itertools import pairwise
 from typing import Any
 
 import numpy as np
@@ -12,13 +13,13 @@ from mocapz.codecs.pga.channels import channels_from_pose
 from mocapz.codecs.pga.clip import targets_in_root_frame
 from mocapz.codecs.pga.effectors import effector_points
 from mocapz.codecs.pga.ik import IKProblem, make_problem, solve
-from mocapz.codecs.pga.joints import inner_joints, position_columns
+from mocapz.codecs.pga.joints import check_skeleton, inner_joints, position_columns
 from mocapz.codecs.pga.model import PGAModel
 from mocapz.codecs.pga.outliers import decode_outliers, kept_frames
 from mocapz.codecs.pga.packing import unpack_matrices
 from mocapz.codecs.pga.params import PGASettings
 from mocapz.codecs.pga.quantise import dequantise_model, model_from_matrices
-from mocapz.errors import FormatError
+from mocapz.errors import FormatError, OptionError
 from mocapz.model.header import ClipHeader
 from mocapz.model.skeleton import Skeleton
 
@@ -37,7 +38,13 @@ def decode(sections: dict[str, bytes], header: ClipHeader) -> Any:
         raise FormatError(None, "corrupted PGA stream (marker layout)")
     frames = header.frames
     try:
+        check_skeleton(skeleton)
+    except OptionError as exc:
+        raise FormatError(None, f"corrupted PGA stream ({exc.message})") from None
+    try:
         settings = PGASettings.from_bytes(sections["params"])
+        if frames > len(settings.outliers):  # the settings drive the kept frames only (a 0-frame clip keeps defaults)
+            settings.check_decoded(3 * len(inner_joints(skeleton)), skeleton.n_points)
         channels = decode_channels(skeleton, settings, sections, frames)
     except KeyError as exc:
         raise FormatError(None, f"corrupted PGA stream (missing section {exc})") from None
@@ -55,16 +62,18 @@ def decode_channels(skeleton: Skeleton, s: PGASettings, sections: dict[str, byte
 
     ``edit`` maps effector slots to replacement global trajectories ``(kept frames, 3)`` (motion editing).
     """
-    outliers = np.asarray(s.outliers, dtype=np.int64)
-    if outliers.size and (outliers.max() >= frames or np.any(np.diff(outliers) <= 0)):
+    if any(not 0 <= f < frames for f in s.outliers) or any(b <= a for a, b in pairwise(s.outliers)):
         raise FormatError(None, "corrupted PGA stream (outlier frames)")
-    kept = kept_frames(frames, outliers)
-    n = len(kept)
+    outliers = np.asarray(s.outliers, dtype=np.int64)
+    n = frames - outliers.size
+    # every stream is read, and checked against the frame count, before frames x channels are allocated
+    exact = decode_outliers(sections["outl"], outliers.size, skeleton.n_channels) if outliers.size else None
+    kept_values = decode_kept(skeleton, s, sections, n, edit) if n else None
     out = np.zeros((frames, skeleton.n_channels))
-    if n:
-        out[kept] = decode_kept(skeleton, s, sections, n, edit)
-    if outliers.size:
-        out[outliers] = decode_outliers(sections["outl"], outliers.size, skeleton.n_channels)
+    if kept_values is not None:
+        out[kept_frames(frames, outliers)] = kept_values
+    if exact is not None:
+        out[outliers] = exact
     return out
 
 
@@ -91,6 +100,7 @@ def decode_streams(skeleton: Skeleton, s: PGASettings, sections: dict[str, bytes
     else:
         effectors = effector_points(skeleton, s.effectors)
     mats = unpack_matrices(sections["data"], stream_count(s, other_cols.size))
+    _check_shapes(mats, s, n, len(inner), len(effectors), other_cols.size)
     model = dequantise_model(model_from_matrices(mats[0], mats[1]), inner, s.k, s.basis_bits, s.mean_step)
     root_pos = lifting.decode_rn(mats[2], n, s.pos_step, s.lod_root)
     root_rot = lifting.decode_so3(mats[3], n, s.rot_step, s.lod_root)
@@ -112,6 +122,25 @@ def decode_streams(skeleton: Skeleton, s: PGASettings, sections: dict[str, bytes
     else:
         targets = targets_in_root_frame(eff, root_pos, root_rot)
     return Decoded(model, effectors, problem, root_pos, root_rot, targets, coords, other)
+
+
+def _check_shapes(mats: list[np.ndarray], s: PGASettings, n: int, inner: int, effectors: int, other: int) -> None:
+    """FormatError unless the decoded integer matrices have the shapes the settings and ``n`` kept frames give."""
+    def rows(lod: int) -> int:
+        return lifting.coefficient_rows(n, lod)
+
+    head = (4 * inner + s.k, 1)
+    moving = int(np.count_nonzero(mats[0][:inner])) if mats[0].shape == head else 0
+    expected = [("model", head), ("model loadings", (3 * moving, s.k)), ("root positions", (rows(s.lod_root), 3)),
+                ("root rotations", (rows(s.lod_root), 3)),
+                ("end effectors", mats[4].shape if s.eff_mode == 2 else (rows(s.lod_effectors), 3 * effectors))]
+    if s.use_coords:
+        expected.append(("coordinates", (rows(s.lod_coords), s.k)))
+    if other:
+        expected.append(("position channels", (rows(0), other)))
+    for m, (what, shape) in zip(mats, expected, strict=True):
+        if m.shape != shape:
+            raise FormatError(None, f"corrupted PGA stream ({what}: shape {m.shape} where {shape} is expected)")
 
 
 def decode_rows(skeleton: Skeleton, s: PGASettings, sections: dict[str, bytes], n: int,
@@ -156,4 +185,6 @@ def rebuild(skeleton: Skeleton, d: Decoded, s: PGASettings, targets: np.ndarray)
     local = np.broadcast_to(np.eye(3), (n, skeleton.n_joints, 3, 3)).copy()
     local[:, 0] = d.root_rot
     local[:, model.joints] = model.pose(x)
+    if not np.isfinite(local).all():  # only damaged streams (huge steps, loadings or coordinates) get here
+        raise FormatError(None, "corrupted PGA stream (poses out of range)")
     return channels_from_pose(skeleton, local, d.root_pos, d.other)

@@ -158,6 +158,6 @@ def decode_so3(q: np.ndarray, n: int, step: float, lod: int) -> np.ndarray:
 
 
 def coefficient_rows(n: int, lod: int) -> int:
-    """Number of integer rows :func:`encode_rn` / :func:`encode_so3` produce."""
-    levels = plan(n)
-    return 1 + sum(lv.positions.size for i, lv in enumerate(levels) if len(levels) - 1 - i >= lod)
+    """Number of integer rows :func:`encode_rn` / :func:`encode_so3` produce (counted without building the
+    plan: level ``l`` holds the samples ``2**l, 3 * 2**l, ...`` below ``n``; the ``lod`` finest are dropped)."""
+    return 1 + sum(len(range(1 << lev, n, 2 << lev)) for lev in range(max(lod, 0), n_levels(n)))

@@ -9,7 +9,7 @@ from __future__ import annotations
 from typing import Any
 
 from mocapz.codecs.options import Option
-from mocapz.codecs.pga.params import PGASettings
+from mocapz.codecs.pga.params import MAX_ITERATIONS, MAX_LOD, PGASettings
 from mocapz.codecs.target import TARGET_OPTIONS
 
 DEFAULT = PGASettings()
@@ -21,16 +21,16 @@ OPTIONS: tuple[Option, ...] = TARGET_OPTIONS + (
            default_text=f"explaining --variance of the pose variance, at most 20{SEARCHED}"),
     Option("variance", "float", "without --geodesics: share of the pose variance the geodesics explain", low=0.0,
            high=1.0, low_open=True, default_text=str(DEFAULT_VARIANCE)),
-    Option("lod_root", "int", "levels of detail dropped from the root trajectory", low=0, high=16,
+    Option("lod_root", "int", "levels of detail dropped from the root trajectory", low=0, high=MAX_LOD,
            default_text=f"{DEFAULT.lod_root}{SEARCHED}"),
-    Option("lod_effectors", "int", "levels of detail dropped from the end-effector trajectories", low=0, high=16,
+    Option("lod_effectors", "int", "levels of detail dropped from the end-effector trajectories", low=0, high=MAX_LOD,
            default_text=f"{DEFAULT.lod_effectors}{SEARCHED}"),
-    Option("lod_coords", "int", "levels of detail dropped from the coded geodesic coordinates", low=0, high=16,
+    Option("lod_coords", "int", "levels of detail dropped from the coded geodesic coordinates", low=0, high=MAX_LOD,
            default_text=f"{DEFAULT.lod_coords}{SEARCHED}"),
     Option("effectors", "names", "end-effector joint or end-site names", default_text="the tree's extremities"),
     Option("bits", "int", "bits of the principal directions' loadings", low=2, high=24,
            default_text=f"{DEFAULT.basis_bits}{SEARCHED}"),
-    Option("iterations", "int", "inverse-kinematics iterations when decoding", low=0, high=1000,
+    Option("iterations", "int", "inverse-kinematics iterations when decoding", low=0, high=MAX_ITERATIONS,
            default_text=f"{DEFAULT.iterations}; fewer when the target still holds"),
     Option("paper", "bool", "decode from the end effectors alone, as in the paper (no coded coordinates)",
            default=False),

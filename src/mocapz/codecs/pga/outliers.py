@@ -63,7 +63,7 @@ def encode_outliers(motion: Motion, frames: list[int]) -> bytes:
 
 def decode_outliers(data: bytes, count: int, n_channels: int) -> np.ndarray:
     """Inverse of :func:`encode_outliers`: channel values ``(count, n_channels)`` in file units."""
-    raw = unzigzag(unpack_uint64(data))
-    if raw.size != count * n_channels + 1 or not 0 <= raw[0] <= 9:
+    raw = unzigzag(unpack_uint64(data, count * n_channels + 1))
+    if not 0 <= raw[0] <= 9:
         raise FormatError(None, "corrupted PGA stream (outlier frames)")
     return raw[1:].reshape(count, n_channels) / 10.0 ** int(raw[0])

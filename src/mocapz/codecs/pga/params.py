@@ -10,6 +10,9 @@ import numpy as np
 from mocapz.errors import FormatError, OptionError
 from mocapz.format.entropy import read_uvarint, write_uvarint
 
+MAX_ITERATIONS = 1000  # the most the iterations option allows
+MAX_LOD = 16  # the most levels of detail the lod options drop
+
 
 @dataclass
 class PGASettings:
@@ -72,6 +75,22 @@ class PGASettings:
             raise OptionError("effector modes 1 and 2 need coded coordinates")
         if not 2 <= self.basis_bits <= 24:
             raise OptionError(f"basis bits must be 2..24, got {self.basis_bits}")
+
+    def check_decoded(self, dim: int, points: int) -> None:
+        """FormatError unless these settings, read from a file, are ones an encoder writes for a skeleton of
+        pose dimension ``dim`` with ``points`` FK points: they bound what the decoder allocates (``k``,
+        ``basis_bits``, levels of detail) and how long it runs (``iterations``)."""
+        try:
+            self.validate(dim, 0)
+        except OptionError as exc:
+            raise FormatError(None, f"corrupted PGA parameters ({exc.message})") from None
+        floats = [getattr(self, name) for name in self._FLOATS]
+        if not all(np.isfinite(floats)) or self.lam_temporal < 0 or self.lam_prior < 0:
+            raise FormatError(None, "corrupted PGA parameters (steps and weights must be finite)")
+        if self.iterations > MAX_ITERATIONS or max(self.lod_root, self.lod_effectors, self.lod_coords) > MAX_LOD:
+            raise FormatError(None, "corrupted PGA parameters (iterations or levels of detail)")
+        if any(not 0 <= e < points for e in self.effectors):
+            raise FormatError(None, "corrupted PGA parameters (effector on an unknown joint)")
 
     # --------------------------------------------------------------- bytes
     _INTS = ("k", "lod_root", "lod_effectors", "lod_coords", "use_coords", "eff_mode", "basis_bits", "iterations")

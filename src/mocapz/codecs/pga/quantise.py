@@ -9,6 +9,7 @@ from mocapz.codecs.pga import so3
 from mocapz.codecs.pga.model import PGAModel
 from mocapz.errors import FormatError
 
+SIGMA_CODES = (-480, 160)  # range of the stored log2 standard deviations (sixteenths): 2**-30 .. 2**10 radians
 
 def quantise_model(model: PGAModel, k: int, basis_bits: int, mean_step: float) -> tuple[np.ndarray, PGAModel]:
     """Integer form of the model and the model the decoder will rebuild from it.
@@ -26,7 +27,7 @@ def quantise_model(model: PGAModel, k: int, basis_bits: int, mean_step: float) -
     sigma = np.sqrt(np.maximum(model.variance[:k], 0.0))
     if sigma.size < k:
         sigma = np.concatenate([sigma, np.zeros(k - sigma.size)])
-    q_sigma = np.clip(np.round(np.log2(np.maximum(sigma, 1e-9)) * 16), -480, 160).astype(np.int64)
+    q_sigma = np.clip(np.round(np.log2(np.maximum(sigma, 1e-9)) * 16), *SIGMA_CODES).astype(np.int64)
     sigma = 2.0 ** (q_sigma / 16.0)
     loadings = model.basis[:, :k] * sigma[None]
     moving = np.abs(model.basis[:, : max(k, 1)]).reshape(n, 3, -1).max(axis=(1, 2)) > 0
@@ -64,8 +65,11 @@ def dequantise_model(ints: np.ndarray, joints: np.ndarray, k: int, basis_bits: i
     m = int(moving.sum())
     if flat.size != 4 * n + k + 3 * m * k:
         raise FormatError(None, "corrupted PGA model (size does not match the skeleton)")
+    q_sigma = flat[4 * n : 4 * n + k]
+    if np.any(q_sigma < SIGMA_CODES[0]) or np.any(q_sigma > SIGMA_CODES[1]):
+        raise FormatError(None, "corrupted PGA model (standard deviations out of range)")
     mean = so3.exp((flat[n : 4 * n] * mean_step).reshape(n, 3))
-    sigma = 2.0 ** (flat[4 * n : 4 * n + k] / 16.0)
+    sigma = 2.0 ** (q_sigma / 16.0)
     basis = np.zeros((3 * n, k))
     loadings = flat[4 * n + k :].reshape(k, 3 * m).T / float(1 << basis_bits)
     basis[np.repeat(moving, 3)] = loadings / sigma[None]
