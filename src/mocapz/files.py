@@ -14,6 +14,7 @@ from pathlib import Path
 
 from mocapz.errors import FormatError
 from mocapz.io import MOTION_EXTENSIONS
+from mocapz.io.common import read_bytes
 from mocapz.model.motion import AnyMotion
 
 COMPRESSED_SUFFIX = ".mcz"
@@ -40,16 +41,6 @@ class Opened:
     source_bytes: int | None = None
 
 
-def read_file_bytes(path: str | os.PathLike[str]) -> bytes:
-    """The bytes of ``path`` (FormatError naming it when missing or a folder)."""
-    p = Path(path)
-    if not p.exists():
-        raise FormatError(p, "no such file")
-    if p.is_dir():
-        raise FormatError(p, "is a folder, not a file")
-    return p.read_bytes()
-
-
 def open_motion(path: str | os.PathLike[str], asf: str | os.PathLike[str] | None = None) -> Opened:
     """A motion file, or a ``.mcz`` decoded (by extension, or by content for other names)."""
     from mocapz.api import decompress, read_container
@@ -57,7 +48,7 @@ def open_motion(path: str | os.PathLike[str], asf: str | os.PathLike[str] | None
 
     p = Path(path)
     if p.suffix.lower() == COMPRESSED_SUFFIX or (p.suffix.lower() not in MOTION_EXTENSIONS and _is_mcz(p)):
-        data = read_file_bytes(p)
+        data = read_bytes(p)
         box, _ = read_container(data, p)
         return Opened(decompress(data, p), box.codec, len(data), len(data))
     motion = load(p, asf) if asf else load(p)

@@ -17,8 +17,9 @@ import click
 from mocapz.cli.common import Say, cut, each_input, finish, frame_slice, message_flags, range_flags
 from mocapz.cli.outputs import check_outputs, is_stdout, motion_to_stdout
 from mocapz.errors import FormatError, OptionError
-from mocapz.files import COMPRESSED_SUFFIX, LIBRARY_SUFFIX, STDIN_NAME, decompressed_name, read_file_bytes
+from mocapz.files import COMPRESSED_SUFFIX, LIBRARY_SUFFIX, STDIN_NAME, decompressed_name
 from mocapz.io import MOTION_EXTENSIONS
+from mocapz.io.common import read_bytes
 
 FORMATS = tuple(e.lstrip(".") for e in MOTION_EXTENSIONS)
 
@@ -73,7 +74,7 @@ def _one(path: Path, root: Path | None, output: Path | None, many: bool, fmt_nam
     from mocapz.io import save
 
     name = STDIN_NAME if str(path) == "-" else str(path)
-    data = click.get_binary_stream("stdin").read() if str(path) == "-" else read_file_bytes(path)
+    data = click.get_binary_stream("stdin").read() if str(path) == "-" else read_bytes(path)
     t0 = time.perf_counter()
     if path.suffix.lower() == LIBRARY_SUFFIX or clip is not None:
         motion = _library_clip(data, path, clip)

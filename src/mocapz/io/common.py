@@ -110,14 +110,20 @@ def _umask() -> int:
     return mask
 
 
-def read_text(path: str | os.PathLike[str]) -> str:
-    """Read a text file, raising :class:`FormatError` for missing, empty or non-text files."""
+def read_bytes(path: str | os.PathLike[str]) -> bytes:
+    """The bytes of a file, raising :class:`FormatError` naming it when it is missing or a folder."""
     p = Path(path)
     if not p.exists():
         raise FormatError(p, "no such file")
     if p.is_dir():
         raise FormatError(p, "is a folder, not a file")
-    data = p.read_bytes()
+    return p.read_bytes()
+
+
+def read_text(path: str | os.PathLike[str]) -> str:
+    """Read a text file, raising :class:`FormatError` for missing, empty or non-text files."""
+    p = Path(path)
+    data = read_bytes(p)
     if not data.strip():
         raise FormatError(p, "file is empty")
     if b"\x00" in data[:4096]:
