@@ -7,7 +7,7 @@ from os import PathLike
 from pathlib import Path
 from typing import Any
 
-from mocapz.codecs import get_codec
+from mocapz.codecs import CodecInfo, get_codec
 from mocapz.errors import FormatError, OptionError
 from mocapz.format.container import Container
 from mocapz.format.layout import decode_header, encode_layout
@@ -33,6 +33,12 @@ def compress(motion: AnyMotion | str | PathLike[str], codec: str = "lossless", *
         from mocapz.io import load
 
         motion = load(Path(motion))
+    return compress_checked(motion, info, checked)
+
+
+def compress_checked(motion: AnyMotion, info: CodecInfo, checked: dict[str, Any]) -> bytes:
+    """:func:`compress` with options already checked by ``info.validate`` (the CLI and the batch workers check
+    them once, before any input is read, and pass them on)."""
     if motion.kind not in info.kinds:
         raise OptionError(f"the {info.name} codec does not take {motion.kind} data "
                           f"(it takes {' and '.join(info.kinds)} data)")

@@ -32,13 +32,11 @@ class Opened:
         motion: the motion (decoded, for a ``.mcz``).
         codec: the codec that wrote the ``.mcz``, or ``None`` for a motion file.
         compressed_bytes: the ``.mcz`` size, or ``None``.
-        source_bytes: the size of the file read.
     """
 
     motion: AnyMotion
     codec: str | None = None
     compressed_bytes: int | None = None
-    source_bytes: int | None = None
 
 
 def open_motion(path: str | os.PathLike[str], asf: str | os.PathLike[str] | None = None) -> Opened:
@@ -50,9 +48,9 @@ def open_motion(path: str | os.PathLike[str], asf: str | os.PathLike[str] | None
     if p.suffix.lower() == COMPRESSED_SUFFIX or (p.suffix.lower() not in MOTION_EXTENSIONS and _is_mcz(p)):
         data = read_bytes(p)
         box, _ = read_container(data, p)
-        return Opened(decompress(data, p), box.codec, len(data), len(data))
+        return Opened(decompress(data, p), box.codec, len(data))
     motion = load(p, asf) if asf else load(p)
-    return Opened(motion, source_bytes=p.stat().st_size)
+    return Opened(motion)
 
 
 def _is_mcz(p: Path) -> bool:

@@ -108,8 +108,8 @@ def _one(path: Path, out: Path, codec: str, options: dict[str, Any], asf: Path |
          rng: tuple[str | None, float | None, float | None], unit: str | None, force: bool,
          say: Say) -> dict[str, Any]:
     """Compress one input to ``out``; return the figures printed (and given with --json)."""
-    from mocapz.api import compress as do_compress
-    from mocapz.api import decompress
+    from mocapz.api import compress_checked, decompress
+    from mocapz.codecs import get_codec
     from mocapz.io import load
     from mocapz.metrics.figures import evaluate, size_figures
 
@@ -126,7 +126,7 @@ def _one(path: Path, out: Path, codec: str, options: dict[str, Any], asf: Path |
     t0 = time.perf_counter()
     with say.progress(f"{name}: {codec}, {motion.n_frames} frames"):
         try:
-            data = do_compress(motion, codec=codec, **options)
+            data = compress_checked(motion, get_codec(codec), options)
         except OptionError as exc:  # the options were checked: this one is about the file (exit code 1)
             raise MocapzError(exc.message, path=exc.path or name) from None
         except MocapzError as exc:

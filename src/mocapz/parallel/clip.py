@@ -91,9 +91,10 @@ def compress_clip(job: ClipJob, codec: str = "lossless", options: dict[str, Any]
 
     Any error (unreadable file, codec refusing the data, existing output without ``force``...) is
     caught and returned in :attr:`ClipResult.error`, so one bad clip never stops a batch. ``options`` are
-    passed as they are to :func:`mocapz.compress`.
+    checked ones (``CodecInfo.validate``, done once by :func:`~mocapz.parallel.folder.compress_folder`).
     """
-    from mocapz.api import compress
+    from mocapz.api import compress_checked
+    from mocapz.codecs import get_codec
     from mocapz.io import load
     from mocapz.io.common import atomic_write
 
@@ -105,7 +106,7 @@ def compress_clip(job: ClipJob, codec: str = "lossless", options: dict[str, Any]
             raise MocapzError(f"output {out} exists (use -f / force=True to overwrite)")
         in_bytes = os.path.getsize(job.source) if os.path.exists(job.source) else 0
         motion = load(job.source)
-        data = compress(motion, codec=codec, **(options or {}))
+        data = compress_checked(motion, get_codec(codec), options or {})
         out.parent.mkdir(parents=True, exist_ok=True)
         atomic_write(out, lambda tmp: tmp.write_bytes(data), force=force)
         return ClipResult(job.index, job.name, job.output, motion.n_frames, motion.raw_bytes, in_bytes, len(data),

@@ -56,13 +56,13 @@ def compress_folder(input_dir: str | os.PathLike[str], output_dir: str | os.Path
     """
     from mocapz.codecs import get_codec
 
-    get_codec(codec)  # unknown codec: one error, not one per clip
+    options = get_codec(codec).validate(options or {})  # a bad codec or option: one error, not one per clip
     out_root = Path(output_dir)
     if out_root.exists() and not out_root.is_dir():
         raise MocapzError(f"{out_root}: output exists and is not a folder")
     jobs_list = plan(input_dir, out_root)
     out_root.mkdir(parents=True, exist_ok=True)
-    worker = functools.partial(compress_clip, codec=codec, options=dict(options or {}), force=force)
+    worker = functools.partial(compress_clip, codec=codec, options=options, force=force)
     results: list[ClipResult | None] = [None] * len(jobs_list)
     t0 = time.perf_counter()
     own = pool is None
