@@ -7,6 +7,8 @@ from pathlib import Path
 
 import pytest
 
+import mocapz  # noqa: F401  (first: pins the BLAS kernels before NumPy is imported, see mocapz._blas)
+
 DATA = Path(os.environ.get("MOCAPZ_DATA", Path(__file__).resolve().parents[1].parent / "shared" / "data"))
 
 

@@ -12,6 +12,10 @@ from __future__ import annotations
 
 __version__ = "0.1.0"
 
+from mocapz._blas import pin_openblas_kernels  # noqa: E402
+
+pin_openblas_kernels()  # before NumPy is imported: the same bytes on every x86-64 machine
+
 from mocapz.api import compress, decompress  # noqa: E402
 from mocapz.errors import FormatError, MocapzError, OptionError, TargetError  # noqa: E402
 from mocapz.io import load, save  # noqa: E402
