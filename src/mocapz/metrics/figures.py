@@ -13,6 +13,7 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from mocapz.errors import MocapzError
+from mocapz.metrics.contacts import find_contacts, foot_points, up_axis  # noqa: F401 (re-exported)
 from mocapz.model.motion import AnyMotion, MarkerMotion, Motion
 
 
@@ -158,54 +159,21 @@ def bone_len_err(a: np.ndarray, b: np.ndarray, valid: np.ndarray, pairs: np.ndar
     return float(np.max(np.abs(lb - la)[ok] / la[ok]))
 
 
-def up_axis(a: np.ndarray, valid: np.ndarray) -> int:
-    """Vertical axis: the one with the largest median per-frame extent of the body (height > width)."""
-    big = np.where(valid[..., None], a, np.nan)
-    with np.errstate(invalid="ignore"):
-        ext = np.nanmax(big, axis=1) - np.nanmin(big, axis=1)
-    return int(np.argmax(np.nanmedian(ext, axis=0)))
-
-
-def foot_points(motion: AnyMotion, a: np.ndarray, valid: np.ndarray, up: int) -> np.ndarray:
-    """Indices of the two lowest points on average (the feet's end sites or toe markers)."""
-    if isinstance(motion, Motion) and motion.skeleton.end_sites:
-        cand = np.arange(motion.skeleton.n_joints, motion.skeleton.n_points)
-    else:
-        cand = np.arange(a.shape[1])
-    with np.errstate(invalid="ignore"):
-        h = np.nanmean(np.where(valid[:, cand], a[:, cand, up], np.nan), axis=0)
-    h = np.where(np.isnan(h), np.inf, h)
-    return cand[np.argsort(h)[:2]]
-
-
 def foot_skate(motion: AnyMotion, a: np.ndarray, b: np.ndarray, valid: np.ndarray,
                unit_cm: float | None) -> float | None:
-    """Decoded minus original mean horizontal foot speed over contact frames, file units per second.
-
-    Contact: the original foot is within 5 cm (or 3 % of the body height if the unit is unknown) of
-    its lowest height and moves slower than 50 cm/s (or 30 % of the body height per second).
-    """
+    """Decoded minus original mean horizontal foot speed over contact frames, file units per second
+    (contacts: :func:`mocapz.metrics.contacts.find_contacts`)."""
     if a.shape[0] < 3:
         return None
-    up = up_axis(a, valid)
-    feet = foot_points(motion, a, valid, up)
+    con = find_contacts(motion, a, valid, unit_cm)
     fps = motion.frame_rate
-    with np.errstate(invalid="ignore"):
-        body = float(np.nanmedian(np.nanmax(np.where(valid, a[..., up], np.nan), axis=1)
-                                  - np.nanmin(np.where(valid, a[..., up], np.nan), axis=1)))
-    h_tol = 5.0 / unit_cm if unit_cm else 0.03 * body
-    v_tol = 50.0 / unit_cm if unit_cm else 0.3 * body
-    horiz = [k for k in range(3) if k != up]
+    horiz = con.horizontal
     diffs = []
-    for f in feet:
-        pa, pb, ok = a[:, f], b[:, f], valid[:, f]
-        va = np.linalg.norm(np.diff(pa, axis=0), axis=1) * fps
-        vb = np.linalg.norm(np.diff(pb[:, horiz], axis=0), axis=1) * fps
-        vha = np.linalg.norm(np.diff(pa[:, horiz], axis=0), axis=1) * fps
-        okv = ok[1:] & ok[:-1]
-        low = pa[1:, up] <= np.nanmin(np.where(ok, pa[:, up], np.nan)) + h_tol
-        contact = okv & low & (va < v_tol)
+    for i, f in enumerate(con.feet):
+        contact = con.steps[:, i]
         if contact.any():
+            vb = np.linalg.norm(np.diff(b[:, f][:, horiz], axis=0), axis=1) * fps
+            vha = np.linalg.norm(np.diff(a[:, f][:, horiz], axis=0), axis=1) * fps
             diffs.append(float(vb[contact].mean() - vha[contact].mean()))
     return float(np.mean(diffs)) if diffs else None
 

@@ -1,0 +1,90 @@
+"""Foot contacts of a motion: which points are feet, and in which frames a foot is planted.
+
+Shared by the error figures (``foot_skate``, :mod:`mocapz.metrics.figures`) and by any encoder that keeps
+planted feet still, so that both use METRICS.md's one definition: a foot is in contact when it is within
+5 cm of its lowest height and moves slower than 50 cm/s (3 % of the body height and 30 % of the body
+height per second when the length unit is unknown).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from mocapz.model.motion import AnyMotion, Motion
+
+CONTACT_HEIGHT_CM = 5.0
+CONTACT_SPEED_CM_S = 50.0
+
+
+def up_axis(a: np.ndarray, valid: np.ndarray) -> int:
+    """Vertical axis of ``(frames, points, 3)`` positions: the one with the largest median per-frame
+    extent of the body (height > width)."""
+    big = np.where(valid[..., None], a, np.nan)
+    with np.errstate(invalid="ignore"):
+        ext = np.nanmax(big, axis=1) - np.nanmin(big, axis=1)
+    return int(np.argmax(np.nanmedian(ext, axis=0)))
+
+
+def foot_points(motion: AnyMotion, a: np.ndarray, valid: np.ndarray, up: int) -> np.ndarray:
+    """Indices of the two lowest points on average (the feet's end sites or toe markers)."""
+    if isinstance(motion, Motion) and motion.skeleton.end_sites:
+        cand = np.arange(motion.skeleton.n_joints, motion.skeleton.n_points)
+    else:
+        cand = np.arange(a.shape[1])
+    with np.errstate(invalid="ignore"):
+        h = np.nanmean(np.where(valid[:, cand], a[:, cand, up], np.nan), axis=0)
+    h = np.where(np.isnan(h), np.inf, h)
+    return cand[np.argsort(h)[:2]]
+
+
+@dataclass
+class Contacts:
+    """Planted-foot steps of a clip.
+
+    Attributes:
+        up: the vertical axis (0, 1 or 2).
+        feet: ``(feet,)`` point indices of the feet (into the ``(frames, points, 3)`` positions).
+        steps: ``(frames - 1, feet)`` True where the foot is planted over the step from frame t to t + 1
+            (both samples present, low and slow in the original).
+    """
+
+    up: int
+    feet: np.ndarray
+    steps: np.ndarray
+
+    @property
+    def horizontal(self) -> list[int]:
+        """The two horizontal axes."""
+        return [k for k in range(3) if k != self.up]
+
+    def frames(self) -> np.ndarray:
+        """``(frames, feet)`` True on every frame that starts or ends a planted step."""
+        f = np.zeros((self.steps.shape[0] + 1, self.steps.shape[1]), dtype=bool)
+        f[:-1] |= self.steps
+        f[1:] |= self.steps
+        return f
+
+
+def find_contacts(motion: AnyMotion, a: np.ndarray, valid: np.ndarray, unit_cm: float | None) -> Contacts:
+    """The planted-foot steps of the original positions ``a`` ``(frames, points, 3)`` (file units),
+    ``valid`` ``(frames, points)`` marking present samples."""
+    up = up_axis(a, valid) if a.shape[0] else 1
+    feet = foot_points(motion, a, valid, up) if a.shape[0] else np.zeros(0, dtype=np.int64)
+    steps = np.zeros((max(a.shape[0] - 1, 0), feet.size), dtype=bool)
+    if a.shape[0] < 2:
+        return Contacts(up, feet, steps)
+    fps = motion.frame_rate
+    with np.errstate(invalid="ignore"):
+        body = float(np.nanmedian(np.nanmax(np.where(valid, a[..., up], np.nan), axis=1)
+                                  - np.nanmin(np.where(valid, a[..., up], np.nan), axis=1)))
+    h_tol = CONTACT_HEIGHT_CM / unit_cm if unit_cm else 0.03 * body
+    v_tol = CONTACT_SPEED_CM_S / unit_cm if unit_cm else 0.3 * body
+    for i, f in enumerate(feet):
+        pa, ok = a[:, f], valid[:, f]
+        speed = np.linalg.norm(np.diff(pa, axis=0), axis=1) * fps
+        with np.errstate(invalid="ignore"):
+            low = pa[1:, up] <= np.nanmin(np.where(ok, pa[:, up], np.nan)) + h_tol
+            steps[:, i] = ok[1:] & ok[:-1] & low & (speed < v_tol)
+    return Contacts(up, feet, steps)
