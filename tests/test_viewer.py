@@ -102,6 +102,7 @@ def test_page_is_self_contained_deterministic_and_faithful(run_view: Any) -> Non
     assert len(d["bones"]) == 2 * 37
     figures = dict(d["figures"])
     assert figures["codec"] == "pga" and figures["ratio"].endswith(": 1") and figures["max error"].endswith(" cm")
+    assert "foot skate 0.1 s" in figures and figures["jitter"].endswith(" %")  # a run: no planted 0.1 s
     # positions round trip within the int16 quantisation step, errors within 1/254 of the clip maximum
     step = np.array(d["quant"]["step"])
     assert np.all(np.abs(decode_positions(d, "original") - run_view.original) <= step)

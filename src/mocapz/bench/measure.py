@@ -151,7 +151,9 @@ def measure_generic(motion: AnyMotion, path: Path, name: str, timeout: float | N
     unit_cm = motion.skeleton.unit_cm if isinstance(motion, Motion) else motion.unit_cm
     zero_cm = 0.0 if unit_cm else None
     out.update(distortion_pct=0.0, arms=0.0, max_err=0.0, p99_err=0.0, bone_len_err=0.0, foot_skate=0.0,
+               foot_skate_window=0.0, jitter_pct=0.0,
                unit_cm=unit_cm, arms_cm=zero_cm, max_err_cm=zero_cm, p99_err_cm=zero_cm,
-               foot_skate_cm_per_s=zero_cm, encode_ms_per_frame=1000.0 * t_enc / frames,
+               foot_skate_cm_per_s=zero_cm, foot_skate_window_cm_per_s=zero_cm,
+               encode_ms_per_frame=1000.0 * t_enc / frames,
                decode_ms_per_frame=1000.0 * t_dec / frames, deterministic=same, source_bytes=len(src))
     return out

@@ -171,7 +171,8 @@ def settings_table(doc: dict[str, Any], codec: str) -> list[str]:
         if r["label"] not in labels:
             labels.append(r["label"])
     header = ["setting", "clips", "ratio", "ratio_file", "distortion % (median)", "max_err cm (median / max)",
-              "arms cm", "p99 cm", "bone_len_err", "foot_skate cm/s", "enc ms/f", "dec ms/f"]
+              "arms cm", "p99 cm", "bone_len_err", "foot_skate cm/s", "skate 0.1 s cm/s", "jitter %",
+              "enc ms/f", "dec ms/f"]
     rows = []
     for lab in labels:
         rs = [r for r in recs if r["label"] == lab]
@@ -187,6 +188,8 @@ def settings_table(doc: dict[str, Any], codec: str) -> list[str]:
                      fmt(_median([r.get("arms_cm") for r in rs])), fmt(_median([r.get("p99_err_cm") for r in rs])),
                      fmt(_median([r.get("bone_len_err") for r in rs])),
                      fmt(_median([r.get("foot_skate_cm_per_s") for r in rs])),
+                     fmt(_median([r.get("foot_skate_window_cm_per_s") for r in rs])),
+                     fmt(_median([r.get("jitter_pct") for r in rs])),
                      fmt(_median([r.get("encode_ms_per_frame") for r in rs])),
                      fmt(_median([r.get("decode_ms_per_frame") for r in rs]))])
     return _table(header, rows)

@@ -76,9 +76,11 @@ def eval_cmd(original: Path, decoded: Path, as_json: bool, plot: Path | None, fo
         extra = f"  ({cm:.4g} cm)" if cm is not None and u else ""
         click.echo(f"{k:>16}: {fmt(rep[k])}{'' if k == 'distortion_pct' else ' units'}{extra}")
     click.echo(f"{'bone_len_err':>16}: {fmt(rep['bone_len_err'])}")
-    fs = rep.get("foot_skate_cm_per_s")
-    fs_cm = f"  ({fs:.4g} cm/s)" if fs is not None else ""
-    click.echo(f"{'foot_skate':>16}: {fmt(rep['foot_skate'])} units/s{fs_cm}")
+    for k, what in (("foot_skate", "frame to frame"), ("foot_skate_window", "over 0.1 s windows")):
+        fs = rep.get(f"{k}_cm_per_s")
+        fs_cm = f"  ({fs:.4g} cm/s)" if fs is not None else ""
+        click.echo(f"{k:>16}: {fmt(rep[k])} units/s{fs_cm}, {what}")
+    click.echo(f"{'jitter_pct':>16}: {fmt(rep['jitter_pct'])} (added acceleration energy, %)")
     for k in ("raw_bytes", "compressed_bytes", "ratio", "ratio_file", "bytes_per_second", "plot"):
         if k in rep:
             click.echo(f"{k:>16}: {fmt(rep[k])}")

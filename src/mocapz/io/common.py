@@ -45,17 +45,38 @@ def detect_decimals(values: np.ndarray, max_decimals: int = 9) -> np.ndarray | N
     return out
 
 
+#: Heights of a standing adult body, centimetres: a skeleton's unit is guessed as the candidate unit that
+#: puts its rest height in this range.
+HUMAN_HEIGHT_CM = (120.0, 220.0)
+
+#: Candidate length units of skeletal files: (centimetres per unit, name). The ranges of rest heights they
+#: accept do not overlap (CMU 21-39 units, inches 47-87, cm 120-220, m 1.2-2.2, mm 1200-2200).
+UNIT_CANDIDATES: tuple[tuple[float, str], ...] = (
+    (100.0, "metres"),
+    (1.0, "centimetres"),
+    (0.1, "millimetres"),
+    (2.54, "inches"),
+    (CMU_UNIT_CM, "CMU units (inch/0.45)"),
+)
+
+
 def guess_unit_cm(height: float) -> tuple[float | None, str]:
-    """Guess centimetres per unit from a standing skeleton's height in file units."""
-    for lo, hi, cm, name in (
-        (1.0, 2.5, 100.0, "metres"),
-        (100.0, 250.0, 1.0, "centimetres"),
-        (1000.0, 2500.0, 0.1, "millimetres"),
-        (18.0, 45.0, CMU_UNIT_CM, "CMU units (inch/0.45)"),
-    ):
-        if lo <= height <= hi:
-            return cm, f"guessed from skeleton height {height:.3g}: {name}"
-    return None, f"unknown (skeleton height {height:.3g} in file units)"
+    """Guess centimetres per unit from a standing skeleton's height in file units.
+
+    Args:
+        height: rest height of the body in file units (:func:`rest_height`).
+
+    Returns:
+        ``(cm_per_unit, note)``: the candidate unit of :data:`UNIT_CANDIDATES` making the body 1.2-2.2 m
+        tall, or ``None`` (unknown) when none does; the note says how it was decided.
+    """
+    lo, hi = HUMAN_HEIGHT_CM
+    fits = [(cm, name) for cm, name in UNIT_CANDIDATES if lo <= height * cm <= hi]
+    if len(fits) == 1:
+        cm, name = fits[0]
+        return cm, f"guessed from skeleton height {height:.3g}: {name} ({height * cm:.0f} cm tall)"
+    return None, (f"unknown (skeleton height {height:.3g} in file units is no human height of "
+                  f"{lo / 100:g}-{hi / 100:g} m in cm, m, mm, in or CMU units; say it with --unit)")
 
 
 def rest_height(skeleton: Skeleton) -> float:

@@ -14,12 +14,17 @@ import numpy as np
 
 from mocapz.errors import MocapzError
 from mocapz.metrics.contacts import find_contacts, foot_points, up_axis  # noqa: F401 (re-exported)
+from mocapz.metrics.skate import foot_skates, jitter_pct
 from mocapz.model.motion import AnyMotion, MarkerMotion, Motion
 
 
 @dataclass
 class ErrorReport:
-    """Error figures. Lengths in the file's unit; ``*_cm`` in centimetres where the unit is known."""
+    """Error figures. Lengths in the file's unit; ``*_cm`` in centimetres where the unit is known.
+
+    ``foot_skate`` (frame to frame) and ``foot_skate_window`` (over 0.1 s windows) are in file units per
+    second, ``jitter_pct`` in percent of the original's acceleration energy (:mod:`mocapz.metrics.skate`).
+    """
 
     distortion_pct: float
     arms: float
@@ -30,6 +35,8 @@ class ErrorReport:
     unit_cm: float | None
     frames: int
     points: int
+    foot_skate_window: float | None = None
+    jitter_pct: float | None = None
 
     def _cm(self, v: float | None) -> float | None:
         return None if v is None or self.unit_cm is None else v * self.unit_cm
@@ -49,7 +56,8 @@ class ErrorReport:
     def as_dict(self) -> dict[str, float | int | None]:
         d = asdict(self)
         d.update(arms_cm=self.arms_cm, max_err_cm=self.max_err_cm, p99_err_cm=self.p99_err_cm,
-                 foot_skate_cm_per_s=self._cm(self.foot_skate))
+                 foot_skate_cm_per_s=self._cm(self.foot_skate),
+                 foot_skate_window_cm_per_s=self._cm(self.foot_skate_window))
         return d
 
 
@@ -162,20 +170,9 @@ def bone_len_err(a: np.ndarray, b: np.ndarray, valid: np.ndarray, pairs: np.ndar
 def foot_skate(motion: AnyMotion, a: np.ndarray, b: np.ndarray, valid: np.ndarray,
                unit_cm: float | None) -> float | None:
     """Decoded minus original mean horizontal foot speed over contact frames, file units per second
-    (contacts: :func:`mocapz.metrics.contacts.find_contacts`)."""
-    if a.shape[0] < 3:
-        return None
-    con = find_contacts(motion, a, valid, unit_cm)
-    fps = motion.frame_rate
-    horiz = con.horizontal
-    diffs = []
-    for i, f in enumerate(con.feet):
-        contact = con.steps[:, i]
-        if contact.any():
-            vb = np.linalg.norm(np.diff(b[:, f][:, horiz], axis=0), axis=1) * fps
-            vha = np.linalg.norm(np.diff(a[:, f][:, horiz], axis=0), axis=1) * fps
-            diffs.append(float(vb[contact].mean() - vha[contact].mean()))
-    return float(np.mean(diffs)) if diffs else None
+    (contacts: :func:`mocapz.metrics.contacts.find_contacts`; frame to frame, see
+    :mod:`mocapz.metrics.skate`)."""
+    return foot_skates(motion, a, b, valid, unit_cm)[0]
 
 
 def evaluate(original: AnyMotion, decoded: AnyMotion) -> ErrorReport:
@@ -194,16 +191,19 @@ def _evaluate(original: AnyMotion, decoded: AnyMotion) -> ErrorReport:
     err = point_errors(a, b)
     ev = err[valid]
     unit_cm = original.skeleton.unit_cm if isinstance(original, Motion) else original.unit_cm
+    skate, skate_window = foot_skates(original, a, b, valid, unit_cm)
     return ErrorReport(
         distortion_pct=distortion_pct(a, b, valid),
         arms=arms(err, valid),
         max_err=float(ev.max()) if ev.size else 0.0,
         p99_err=float(np.percentile(ev, 99)) if ev.size else 0.0,
         bone_len_err=bone_len_err(a, b, valid, bone_pairs(original)),
-        foot_skate=foot_skate(original, a, b, valid, unit_cm),
+        foot_skate=skate,
         unit_cm=unit_cm,
         frames=int(a.shape[0]),
         points=int(a.shape[1]),
+        foot_skate_window=skate_window,
+        jitter_pct=jitter_pct(a, b, valid),
     )
 
 

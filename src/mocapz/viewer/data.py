@@ -178,6 +178,10 @@ def _figures(stats: dict[str, Any], n_frames: int, frame_rate: float, unit_cm: f
         figs.append(("bone length", f"{round(100 * stats['bone_len_err'], 6):.3g} %"))
         fs = stats.get("foot_skate")
         figs.append(("foot skate", "n/a" if fs is None else _fmt_len(fs, unit_cm) + "/s"))
+        fw = stats.get("foot_skate_window")
+        figs.append(("foot skate 0.1 s", "n/a" if fw is None else _fmt_len(fw, unit_cm) + "/s"))
+        jit = stats.get("jitter_pct")
+        figs.append(("jitter", "n/a" if jit is None or not math.isfinite(jit) else f"{jit:+.3g} %"))
     figs.append(("frames", f"{n_frames} @ {frame_rate:.4g} fps ({n_frames / frame_rate:.2f} s)"))
     return figs
 
