@@ -36,6 +36,7 @@ bench: $(STAMP)
 	$(BIN)/python scripts/pga.py --out docs/benchmarks/pga.md
 	$(BIN)/python scripts/patterns.py
 	$(BIN)/python scripts/run_all.py
+	$(BIN)/python scripts/quality.py --jobs 2
 
 clean:
 	rm -rf $(VENV) out .pytest_cache
