@@ -24,7 +24,8 @@ from mocapz.codecs import _REGISTRY, CodecInfo, get_codec
 
 SHORT = "cmu/bvh/09_06.bvh"  # 142 frames
 SHORT2 = "cmu/bvh/09_01.bvh"  # 149 frames
-SCORES = ("distortion_pct", "arms", "max_err", "p99_err", "bone_len_err", "foot_skate", "max_err_cm", "arms_cm")
+SCORES = ("distortion_pct", "arms", "max_err", "p99_err", "bone_len_err", "foot_skate", "jitter_pct", "max_err_cm",
+          "arms_cm")
 SIZES = ("raw_bytes", "compressed_bytes", "ratio", "ratio_file", "bytes_per_second")
 
 

@@ -110,10 +110,7 @@ def test_every_shared_skeleton_gets_a_human_height(rel: str) -> None:
     sk = m.skeleton
     assert sk.unit_cm is not None, sk.unit_note
     pos = m.positions()
-    top = 0
-    while (kids := np.flatnonzero(sk.parents == top)).size == 1:
-        top = int(kids[0])
-    body = [p for p in range(sk.n_points) if p >= top]  # parents come first: the chain above is 0..top-1
+    body = sk.body_points()
     up = int(np.argmax(np.median(np.ptp(pos[:, body], axis=1), axis=0)))
     height_cm = float(np.median(np.ptp(pos[:, body, up], axis=1))) * sk.unit_cm
     assert 100.0 <= height_cm <= 230.0, (rel, height_cm, sk.unit_note)
@@ -130,3 +127,11 @@ def test_unit_flag_overrides_the_guess(tmp_path: Path) -> None:
     assert res.exit_code == 0, res.output
     out = runner.invoke(cli, ["info", str(mcz), "--json"], catch_exceptions=False).output
     assert json.loads(out)["unit_cm"] == pytest.approx(0.1)
+
+
+def test_body_points_leave_out_the_locomotion_root() -> None:
+    far = read_bvh(data_path("other/bvh/bandai_namco/dataset-2_walk_elderly_004.bvh")).skeleton
+    assert far.names[:2] == ["joint_Root", "Hips"]
+    assert far.body_points().tolist() == list(range(1, far.n_points))
+    cmu = read_bvh(data_path("cmu/bvh/09_06.bvh")).skeleton
+    assert cmu.body_points().tolist() == list(range(cmu.n_points))

@@ -90,16 +90,7 @@ def rest_height(skeleton: Skeleton) -> float:
 
     rot = np.broadcast_to(np.eye(3), (1, skeleton.n_joints, 3, 3)).copy()
     pos, _ = chain(skeleton, rot, skeleton.offsets[None].copy())
-    parents = skeleton.parents
-    top = 0
-    while (kids := np.flatnonzero(parents == top)).size == 1:
-        top = int(kids[0])
-    inside = np.zeros(skeleton.n_joints, dtype=bool)
-    inside[top] = True
-    for j in range(top + 1, skeleton.n_joints):  # parents come before children
-        inside[j] = parents[j] >= 0 and inside[parents[j]]
-    ends = np.array([inside[j] for j, _, _ in skeleton.end_sites], dtype=bool)
-    return float(np.ptp(pos[0][np.concatenate([inside, ends])], axis=0).max())
+    return float(np.ptp(pos[0][skeleton.body_points()], axis=0).max())
 
 
 def atomic_write(path: str | os.PathLike[str], write: Callable[[Path], None], force: bool = False) -> None:

@@ -130,3 +130,17 @@ class Skeleton:
             unit_note=self.unit_note,
             extra=dict(self.extra),
         )
+
+    def body_points(self) -> np.ndarray:
+        """Indices of the body's FK points (joints, then end sites): the subtree of the first joint that
+        branches, so that a chain of helper joints above the hips (a locomotion root on the floor, as in the
+        Bandai-Namco rigs) is left out. ``(points,)`` int64, increasing."""
+        top = 0
+        while (kids := np.flatnonzero(self.parents == top)).size == 1:
+            top = int(kids[0])
+        inside = np.zeros(self.n_points, dtype=bool)
+        inside[top] = True
+        parents = self.point_parents
+        for p in range(top + 1, self.n_points):  # parents come before children, joints before end sites
+            inside[p] = parents[p] >= 0 and inside[parents[p]]
+        return np.flatnonzero(inside)
