@@ -122,10 +122,13 @@ def load_clip(rel: str, frames: int | None) -> AnyMotion:
 
 def describe_clip(rel: str, motion: AnyMotion) -> dict[str, Any]:
     """Clip fields of a record: format, frames, rate, kind, unit, raw bytes."""
-    sk = motion.skeleton if isinstance(motion, Motion) else None
-    return {"clip": clip_id(rel), "path": rel, "frames": motion.n_frames, "frame_rate": motion.frame_rate,
-            "kind": "skeleton" if sk is not None else "markers", "raw_bytes": motion.raw_bytes,
-            "unit_cm": sk.unit_cm if sk is not None else motion.unit_cm}  # type: ignore[union-attr]
+    rec = {"clip": clip_id(rel), "path": rel, "frames": motion.n_frames, "frame_rate": motion.frame_rate,
+           "raw_bytes": motion.raw_bytes}
+    if isinstance(motion, Motion):
+        rec.update(kind="skeleton", unit_cm=motion.skeleton.unit_cm, unit_note=motion.skeleton.unit_note)
+    else:
+        rec.update(kind="markers", unit_cm=motion.unit_cm, unit_note=f"marker file in {motion.units}")
+    return rec
 
 
 def run_task(task: Task) -> dict[str, Any]:

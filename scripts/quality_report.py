@@ -173,6 +173,19 @@ def results_table(records: Sequence[dict[str, Any]]) -> list[str]:
     return _table(header, rows, "llll" + "r" * 9)
 
 
+def clips_table(records: Sequence[dict[str, Any]]) -> list[str]:
+    """One row per clip: kind, frames, rate, raw size and the length unit read or guessed."""
+    rows, seen = [], set()
+    for r in records:
+        if r["clip"] in seen or "frames" not in r:
+            continue
+        seen.add(r["clip"])
+        unit = "unknown" if r.get("unit_cm") is None else f"{r['unit_cm']:.4g} cm"
+        rows.append([r["path"], r["kind"], str(r["frames"]), f"{r['frame_rate']:g}", str(r["raw_bytes"]),
+                     unit, str(r.get("unit_note", "")).replace("|", "/")])
+    return _table(["clip", "kind", "frames", "fps", "raw bytes", "1 unit", "unit from"], rows, "llrrrrl")
+
+
 def failures(records: Sequence[dict[str, Any]]) -> list[str]:
     bad = [r for r in records if r["status"] not in ("ok", "n/a")]
     if not bad:
@@ -259,5 +272,7 @@ def render(records: Sequence[dict[str, Any]], run: dict[str, Any]) -> str:
         *results_table(records), "",
         "## Targets not met", "",
         *failures(records), "",
+        "## Clips", "",
+        *clips_table(records), "",
     ]
     return "\n".join(lines)
