@@ -16,7 +16,14 @@ from conftest import data_path
 from mocapz.cli.main import cli
 from mocapz.io import load
 from mocapz.io.bvh import read_bvh, write_bvh
-from mocapz.io.common import CMU_UNIT_CM, HUMAN_HEIGHT_CM, guess_unit_cm, rest_height
+from mocapz.io.common import (
+    CMU_UNIT_CM,
+    HUMAN_HEIGHT_CM,
+    SPAN_PER_HEIGHT,
+    chain_span,
+    guess_unit_cm,
+    rest_height,
+)
 from mocapz.model.motion import Motion
 
 CM_CLIPS = ("other/bvh/bvh-python/test_mocapbank.bvh", "other/bvh/bandai_namco/dataset-1_walk_normal_001.bvh")
@@ -75,9 +82,44 @@ def test_far_floor_root_does_not_change_the_guess(tmp_path: Path, unit: str) -> 
     assert np.allclose(back.positions()[:, 1:], read_bvh(path).positions(), atol=1e-9)
 
 
+def _folded(m: Motion) -> Motion:
+    """The clip with a zig-zag rest pose: every bone along x, its direction flipping at each level of the
+    tree (bone lengths kept, so the chains are unchanged; the rest pose is no standing one)."""
+    sk = m.skeleton.copy()
+    depth = np.zeros(sk.n_joints, dtype=np.int64)
+    for j in range(1, sk.n_joints):
+        depth[j] = depth[sk.parents[j]] + 1
+    sign = np.where(depth % 2 == 0, 1.0, -1.0)
+    sk.offsets = np.linalg.norm(sk.offsets, axis=1)[:, None] * sign[:, None] * np.array([1.0, 0.0, 0.0])
+    sk.end_sites = [(j, -sign[j] * np.linalg.norm(o) * np.array([1.0, 0.0, 0.0]), n) for j, o, n in sk.end_sites]
+    return replace(m, skeleton=sk)
+
+
+@pytest.mark.parametrize(("unit", "expected"), [("cm", None), ("mm", 0.1), ("m", 100.0)])
+def test_rest_pose_that_is_not_standing(tmp_path: Path, unit: str, expected: float | None) -> None:
+    """A folded rest pose: 59 cm tall. In mm and m that is no human height in any unit and the bone chains
+    (1.6 m) decide; in cm it reads as 59 inches while the chains say cm: the guess is unknown, not wrong."""
+    m = _folded(_rescaled(read_bvh(data_path(CM_CLIPS[0])), UNITS[unit]))
+    path = tmp_path / f"folded_{unit}.bvh"
+    write_bvh(m, path)
+    back = read_bvh(path)
+    span_cm = chain_span(back.skeleton) / SPAN_PER_HEIGHT * UNITS[unit]
+    assert 150 < span_cm < 170
+    assert back.skeleton.unit_cm == expected, back.skeleton.unit_note
+    if expected is None:
+        assert "--unit" in back.skeleton.unit_note and np.isnan(rest_height(back.skeleton))
+
+
+def test_chain_span_ignores_the_rest_pose() -> None:
+    m = read_bvh(data_path(CM_CLIPS[0]))
+    assert chain_span(_folded(m).skeleton) == pytest.approx(chain_span(m.skeleton), rel=1e-12)
+    # toe to fingertip over height, on the shared skeletons: about 1.5
+    assert 1.3 < chain_span(m.skeleton) / rest_height(m.skeleton) < 1.7
+
+
 @pytest.mark.parametrize(("height", "cm"), [
     (1.75, 100.0), (175.0, 1.0), (1750.0, 0.1), (69.0, 2.54), (31.0, CMU_UNIT_CM), (1.25, 100.0), (2.15, 100.0),
-    (0.3, None), (100.0, None), (3.0, None), (43.0, None), (500.0, None), (12.0, None),
+    (0.3, None), (100.0, None), (3.0, None), (43.0, None), (500.0, None), (12.0, None), (float("nan"), None),
 ])
 def test_guess_by_height(height: float, cm: float | None) -> None:
     got, note = guess_unit_cm(height)

@@ -64,13 +64,16 @@ def guess_unit_cm(height: float) -> tuple[float | None, str]:
     """Guess centimetres per unit from a standing skeleton's height in file units.
 
     Args:
-        height: rest height of the body in file units (:func:`rest_height`).
+        height: height of the body in file units (:func:`rest_height`; NaN: its measures disagree).
 
     Returns:
         ``(cm_per_unit, note)``: the candidate unit of :data:`UNIT_CANDIDATES` making the body 1.2-2.2 m
         tall, or ``None`` (unknown) when none does; the note says how it was decided.
     """
     lo, hi = HUMAN_HEIGHT_CM
+    if np.isnan(height):
+        return None, ("unknown (the skeleton's rest pose and its bone chains give human heights in different "
+                      "units; say it with --unit)")
     fits = [(cm, name) for cm, name in UNIT_CANDIDATES if lo <= height * cm <= hi]
     if len(fits) == 1:
         cm, name = fits[0]
@@ -79,18 +82,54 @@ def guess_unit_cm(height: float) -> tuple[float | None, str]:
                   f"{lo / 100:g}-{hi / 100:g} m in cm, m, mm, in or CMU units; say it with --unit)")
 
 
-def rest_height(skeleton: Skeleton) -> float:
-    """Largest extent of the body in the rest pose (all channels zero, offsets only) along any axis, in file
-    units.
+#: Longest bone path between two points of a human skeleton (toe to fingertip: leg + spine + arm) over the
+#: standing height: 1.41-1.67 on every shared BVH and ASF skeleton (measured against their clips' heights).
+SPAN_PER_HEIGHT = 1.5
 
-    The body is the subtree of the first joint that branches: a chain of helper joints above it (a
-    locomotion root on the floor, far from the hips, as in the Bandai-Namco rigs) does not count.
+
+def rest_height(skeleton: Skeleton) -> float:
+    """Height of the body in file units, for the unit guess (:func:`guess_unit_cm`).
+
+    The body is the subtree of the first joint that branches (:meth:`Skeleton.body_points`): a chain of
+    helper joints above it (a locomotion root on the floor, far from the hips, as in the Bandai-Namco rigs)
+    does not count. Two measures of its proportions are taken: the largest extent of the body in the rest
+    pose (all channels zero, offsets only) along any axis, and the pose-free :func:`chain_span` divided by
+    :data:`SPAN_PER_HEIGHT`. The rest extent is returned when it is a human height in some candidate unit
+    that the chains do not contradict; the chain height when only it is a human height (a rest pose that is
+    not a standing one); NaN (unit unknown) when the two are human heights in different units.
     """
     from mocapz.model.kinematics import chain
 
     rot = np.broadcast_to(np.eye(3), (1, skeleton.n_joints, 3, 3)).copy()
     pos, _ = chain(skeleton, rot, skeleton.offsets[None].copy())
-    return float(np.ptp(pos[0][skeleton.body_points()], axis=0).max())
+    box = float(np.ptp(pos[0][skeleton.body_points()], axis=0).max())
+    span = chain_span(skeleton) / SPAN_PER_HEIGHT
+    by_box, by_span = guess_unit_cm(box)[0], guess_unit_cm(span)[0]
+    if by_box is not None and by_span is not None and by_box != by_span:
+        return float("nan")
+    return span if by_box is None and by_span is not None else box
+
+
+def chain_span(skeleton: Skeleton) -> float:
+    """Longest path along the bones between two points of the body (sum of bone lengths, file units): for a
+    human, toe to fingertip. It does not depend on the rest pose."""
+    body = skeleton.body_points()
+    ends = np.array([o for _, o, _ in skeleton.end_sites], dtype=np.float64).reshape(-1, 3)
+    length = np.linalg.norm(np.concatenate([skeleton.offsets, ends]), axis=1)
+    parents = skeleton.point_parents
+    inside = np.zeros(skeleton.n_points, dtype=bool)
+    inside[body] = True
+    first = np.zeros(skeleton.n_points)  # longest path down from each point, and the second longest
+    second = np.zeros(skeleton.n_points)
+    for p in body[::-1]:  # children after parents: every point's paths are known before its parent's
+        q = parents[p]
+        if q >= 0 and inside[q]:
+            d = first[p] + length[p]
+            if d > first[q]:
+                first[q], second[q] = d, first[q]
+            elif d > second[q]:
+                second[q] = d
+    return float((first + second)[body].max())
 
 
 def atomic_write(path: str | os.PathLike[str], write: Callable[[Path], None], force: bool = False) -> None:
