@@ -74,13 +74,13 @@ def eval_cmd(original: Path, decoded: Path, as_json: bool, plot: Path | None, fo
     for k in ("distortion_pct", "arms", "max_err", "p99_err"):
         cm = rep.get(f"{k}_cm")
         extra = f"  ({cm:.4g} cm)" if cm is not None and u else ""
-        click.echo(f"{k:>16}: {fmt(rep[k])}{'' if k == 'distortion_pct' else ' units'}{extra}")
-    click.echo(f"{'bone_len_err':>16}: {fmt(rep['bone_len_err'])}")
+        click.echo(f"{k:>17}: {fmt(rep[k])}{'' if k == 'distortion_pct' else ' units'}{extra}")
+    click.echo(f"{'bone_len_err':>17}: {fmt(rep['bone_len_err'])}")
     for k, what in (("foot_skate", "frame to frame"), ("foot_skate_window", "over 0.1 s windows")):
         fs = rep.get(f"{k}_cm_per_s")
         fs_cm = f"  ({fs:.4g} cm/s)" if fs is not None else ""
-        click.echo(f"{k:>16}: {fmt(rep[k])} units/s{fs_cm}, {what}")
-    click.echo(f"{'jitter_pct':>16}: {fmt(rep['jitter_pct'])} (added acceleration energy, %)")
+        click.echo(f"{k:>17}: {fmt(rep[k])} units/s{fs_cm}, {what}")
+    click.echo(f"{'jitter_pct':>17}: {fmt(rep['jitter_pct'])} (added acceleration energy, %)")
     for k in ("raw_bytes", "compressed_bytes", "ratio", "ratio_file", "bytes_per_second", "plot"):
         if k in rep:
-            click.echo(f"{k:>16}: {fmt(rep[k])}")
+            click.echo(f"{k:>17}: {fmt(rep[k])}")
