@@ -70,7 +70,10 @@ class Contacts:
 def find_contacts(motion: AnyMotion, a: np.ndarray, valid: np.ndarray, unit_cm: float | None) -> Contacts:
     """The planted-foot steps of the original positions ``a`` ``(frames, points, 3)`` (file units),
     ``valid`` ``(frames, points)`` marking present samples."""
-    up = up_axis(a, valid) if a.shape[0] else 1
+    # the body only: a static floor root far from the body (Bandai-Namco) must not make a walk's
+    # direction look like the vertical
+    body = motion.skeleton.body_points() if isinstance(motion, Motion) else np.arange(a.shape[1])
+    up = up_axis(a[:, body], valid[:, body]) if a.shape[0] else 1
     feet = foot_points(motion, a, valid, up) if a.shape[0] else np.zeros(0, dtype=np.int64)
     steps = np.zeros((max(a.shape[0] - 1, 0), feet.size), dtype=bool)
     if a.shape[0] < 2:
