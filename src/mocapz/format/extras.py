@@ -53,20 +53,41 @@ def _bad(what: str) -> FormatError:
 
 # ----------------------------------------------------------------------------------------- word matrices
 def encode_words(words: np.ndarray, is_float: bool, processor: int) -> bytes:
-    """A ``(rows, cols)`` int64 word matrix as the smallest of the codings of the module docstring."""
+    """A ``(rows, cols)`` int64 word matrix as the smallest of the codings of the module docstring.
+
+    The mode byte: bits 0-1 the integer form (:data:`MODE_INT`, :data:`MODE_FLOAT_INT`, :data:`MODE_BITS`,
+    or :data:`MODE_XZ`: the raw words through xz), bits 2-3 the prediction order, bits 4-5 the back end
+    (0 range coder; 1 / 2: the integers column by column as 2 / 4 little-endian byte planes through xz).
+    """
     w = np.asarray(words, dtype=np.int64)
     rows, cols = w.shape
     if w.size == 0:
         return bytes([MODE_INT])
-    options: list[bytes] = []
+    raw = w.astype("<u4" if is_float else "<i2").tobytes()
+    options = [bytes([MODE_XZ]) + _xz(raw)]
     for mode, ints in _integer_forms(w, is_float, processor):
         for order in (0, 1, 2):
-            start = np.zeros((order, cols), dtype=np.int64)
-            residual = np.diff(ints, n=order, axis=0, prepend=start)
-            options.append(bytes([mode | order << 4]) + encode_int_matrix(residual))
-    raw = w.astype("<u4" if is_float else "<i2").tobytes()
-    options.append(bytes([MODE_XZ]) + _xz(raw))
+            residual = np.diff(ints, n=order, axis=0, prepend=np.zeros((order, cols), dtype=np.int64))
+            options.append(bytes([mode | order << 2]) + encode_int_matrix(residual))
+            if order < 2:
+                width = 2 if residual.min() >= -(1 << 15) and residual.max() < 1 << 15 else 4
+                if width == 4 and (residual.min() < -(1 << 31) or residual.max() >= 1 << 31):
+                    continue
+                options.append(bytes([mode | order << 2 | width // 2 << 4]) + _xz(_planes(residual, width)))
     return min(options, key=len)
+
+
+def _planes(ints: np.ndarray, width: int) -> bytes:
+    """``(rows, cols)`` integers as ``width`` byte planes of the column-major little-endian words."""
+    col_major = np.ascontiguousarray(ints.T).astype(f"<i{width}")
+    return np.ascontiguousarray(col_major.view(np.uint8).reshape(-1, width).T).tobytes()
+
+
+def _from_planes(raw: bytes, shape: tuple[int, int], width: int) -> np.ndarray:
+    rows, cols = shape
+    planes = np.frombuffer(raw, dtype=np.uint8).reshape(width, rows * cols)
+    words = np.ascontiguousarray(planes.T).view(f"<i{width}").reshape(cols, rows)
+    return words.T.astype(np.int64)
 
 
 def _integer_forms(w: np.ndarray, is_float: bool, processor: int) -> list[tuple[int, np.ndarray]]:
@@ -108,16 +129,23 @@ def decode_words(data: bytes, shape: tuple[int, int], is_float: bool, processor:
         raise _bad("empty word stream")
     if rows * cols == 0:
         return np.zeros(shape, dtype=np.int64)
-    mode, order = data[0] & 15, data[0] >> 4
-    if mode == MODE_XZ:
+    mode, order, backend = data[0] & 3, data[0] >> 2 & 3, data[0] >> 4
+    if mode == MODE_XZ and data[0] == MODE_XZ:
         size = rows * cols * (4 if is_float else 2)
         raw = _unxz(data[1:], size, "word stream")
         if len(raw) != size:
             raise _bad("word stream of the wrong length")
         return np.frombuffer(raw, dtype="<u4" if is_float else "<i2").astype(np.int64).reshape(shape)
-    if order > 2 or mode not in (MODE_INT, MODE_FLOAT_INT, MODE_BITS) or (mode == MODE_INT) == is_float:
+    if order > 2 or backend > 2 or mode == MODE_XZ or (mode == MODE_INT) == is_float:
         raise _bad(f"word stream mode {data[0]}")
-    ints = decode_int_matrix(data[1:], (rows, cols))
+    if backend:
+        size = rows * cols * 2 * backend
+        raw = _unxz(data[1:], size, "word planes")
+        if len(raw) != size:
+            raise _bad("word planes of the wrong length")
+        ints = _from_planes(raw, shape, 2 * backend)
+    else:
+        ints = decode_int_matrix(data[1:], (rows, cols))
     for _ in range(order):
         ints = np.cumsum(ints, axis=0)
     if mode == MODE_INT:
