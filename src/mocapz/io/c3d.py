@@ -1,11 +1,13 @@
 """C3D marker files, read through ``ezc3d`` (or mocapz's own decoder where ezc3d cannot) and written
-through ``ezc3d``.
+back in their own storage (or, for a motion that did not come from a C3D file, through ``ezc3d``).
 
-Reading keeps the 3D points (``POINT:LABELS``, ``POINT:RATE``, ``POINT:UNITS``, first frame), turns
-missing samples (ezc3d NaN or a negative residual) into NaN, and keeps the analog channels, their
-labels, units and rate, the point residuals and descriptions in ``MarkerMotion.metadata`` so that
-:func:`write_c3d` puts them back. Other parameter groups (events, force platforms, subjects) are not
-carried over.
+Reading keeps the marker positions (``POINT:LABELS``, ``POINT:RATE``, ``POINT:UNITS``, first frame),
+missing samples (a negative residual word or a non-finite value) as NaN, and everything else the file
+holds in a :class:`~mocapz.model.c3d_extras.C3DExtras` (``metadata["c3d"]``, made by
+:mod:`mocapz.io.c3d_raw`): the header and parameter section verbatim, residual words, analog samples,
+the model outputs (points named in POINT:ANGLES / FORCES / MOMENTS / POWERS / REACTIONS, which are not
+markers). :func:`write_c3d` writes them back byte for byte. For Python users ``metadata`` also holds the
+markers' residuals, the analog channels as ezc3d scales them, their labels, units and rate.
 
 Before ezc3d sees a file it is checked by :func:`mocapz.io.c3d_checks.check_c3d_file` (ezc3d segfaults
 on some corrupt parameter sections, silently reads a truncated file as a shorter clip and raises bare C++
