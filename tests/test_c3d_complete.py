@@ -166,3 +166,15 @@ def test_cli_patterns_on_pig_has_no_warnings(tmp_path: Path) -> None:
     assert "Warning" not in run.stderr
     back = mocapz.decompress(out.read_bytes())
     assert back.n_markers == 113 and len(back.metadata["c3d"].track_labels) == 80
+
+
+def test_library_clips_keep_their_extras() -> None:
+    """compress-db libraries carry each C3D clip's extras beside its pattern streams."""
+    from mocapz.libraries import compress_library, read_clip
+
+    clip = mocapz.load(data_path(EB015[1])).slice(0, 150)
+    back = read_clip(compress_library([clip]), clip.name)
+    got, want = back.metadata["c3d"], clip.metadata["c3d"]
+    np.testing.assert_array_equal(got.analog_words, want.analog_words)
+    np.testing.assert_array_equal(got.residual_words, want.residual_words)
+    assert got.params == want.params and got.header == want.header

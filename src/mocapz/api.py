@@ -10,9 +10,8 @@ from typing import Any
 from mocapz.codecs import CodecInfo, get_codec
 from mocapz.errors import FormatError, OptionError
 from mocapz.format.container import Container
-from mocapz.format.extras import PREFIX, decode_extras, encode_extras, split_sections
+from mocapz.format.extras import PREFIX, attach, sections_of, split_sections
 from mocapz.format.layout import decode_header, encode_layout
-from mocapz.model.c3d_extras import C3DExtras
 from mocapz.model.header import ClipHeader
 from mocapz.model.motion import AnyMotion, MarkerMotion, Motion
 
@@ -47,9 +46,7 @@ def compress_checked(motion: AnyMotion, info: CodecInfo, checked: dict[str, Any]
     sections = info.encode(motion, **checked)
     if any(key.startswith(PREFIX) for key in sections):
         raise FormatError(None, f"the {info.name} codec wrote a section named {PREFIX}*, which is reserved")
-    extras = motion.metadata.get("c3d") if isinstance(motion, MarkerMotion) else None
-    if isinstance(extras, C3DExtras) and extras.matches(motion.n_frames, motion.n_markers):
-        sections = {**sections, **encode_extras(extras)}  # coded losslessly, whatever the codec
+    sections = {**sections, **sections_of(motion)}  # the C3D extras, coded losslessly whatever the codec
     return Container(info.name, info.version, encode_layout(motion), sections).to_bytes()
 
 
@@ -75,12 +72,7 @@ def decompress(data: bytes, path: str | Path | None = None) -> AnyMotion:
                                 f"(this mocapz has version {info.version})")
     codec_sections, extra_sections = split_sections(box.sections)
     try:
-        motion = info.decode(codec_sections, header)
-        if extra_sections and isinstance(motion, MarkerMotion):
-            motion.metadata["c3d"] = decode_extras(extra_sections, motion.n_frames, motion.n_markers)
-        elif extra_sections:
-            raise FormatError(None, "C3D sections in a skeletal clip")
-        return motion
+        return attach(info.decode(codec_sections, header), extra_sections)
     except FormatError as exc:
         raise FormatError(path, exc.problem) from None
     except (ValueError, IndexError, KeyError, TypeError, OverflowError) as exc:

@@ -38,6 +38,7 @@ from mocapz.format.entropy import (
     write_uvarint,
 )
 from mocapz.model.c3d_extras import C3DExtras, float_values, float_words
+from mocapz.model.motion import AnyMotion, MarkerMotion
 
 PREFIX = "c3d."
 VERSION = 1
@@ -200,6 +201,25 @@ def encode_extras(extras: C3DExtras) -> dict[str, bytes]:
         PREFIX + "ana": encode_words(extras.analog_words, *fmt),
         PREFIX + "fix": write_uvarint(len(packed)) + packed + encode_words(extras.fix_words[extras.fix_mask], *fmt),
     }
+
+
+def sections_of(motion: AnyMotion) -> dict[str, bytes]:
+    """The ``c3d.*`` sections of a motion read from a C3D file (``{}`` for any other motion, and for extras
+    that describe another clip: another frame or marker count)."""
+    extras = motion.metadata.get("c3d") if isinstance(motion, MarkerMotion) else None
+    if isinstance(extras, C3DExtras) and extras.matches(motion.n_frames, motion.n_markers):
+        return encode_extras(extras)
+    return {}
+
+
+def attach(motion: AnyMotion, sections: dict[str, bytes]) -> AnyMotion:
+    """Put the extras coded in ``sections`` (the ``c3d.*`` ones, if any) into the decoded ``motion``."""
+    if not sections:
+        return motion
+    if not isinstance(motion, MarkerMotion):
+        raise _bad("C3D sections in a skeletal clip")
+    motion.metadata["c3d"] = decode_extras(sections, motion.n_frames, motion.n_markers)
+    return motion
 
 
 def split_sections(sections: dict[str, bytes]) -> tuple[dict[str, bytes], dict[str, bytes]]:
