@@ -43,7 +43,7 @@ from mocapz.model.motion import AnyMotion, MarkerMotion
 
 PREFIX = "c3d."
 VERSION = 1
-MAX_WORDS = 1 << 28  # most words the sections of one clip may declare
+MAX_WORDS = 1 << 26  # most words (residual, track, analog) one clip's sections may hold: 512 MiB decoded
 MAX_STATIC = 1 << 26  # most bytes of header, parameter section and trailing bytes
 XZ_MEMORY = 1 << 26  # the most memory an xz stream here may ask of its decoder
 MODE_INT, MODE_FLOAT_INT, MODE_BITS, MODE_XZ = 0, 1, 2, 3
@@ -208,7 +208,7 @@ def encode_extras(extras: C3DExtras) -> dict[str, bytes]:
     return {
         PREFIX + "file": bytes([VERSION]) + _xz(static, extreme=True),
         PREFIX + "res": encode_words(extras.residual_words, *fmt),
-        PREFIX + "trk": encode_words(extras.track_words.reshape(f, -1), *fmt),
+        PREFIX + "trk": encode_words(extras.track_words.reshape(f, 3 * extras.track_index.size), *fmt),
         PREFIX + "ana": encode_words(extras.analog_words, *fmt),
         PREFIX + "fix": write_uvarint(len(packed)) + packed + encode_words(extras.fix_words[extras.fix_mask], *fmt),
     }
@@ -219,6 +219,10 @@ def sections_of(motion: AnyMotion) -> dict[str, bytes]:
     that describe another clip: another frame or marker count)."""
     extras = motion.metadata.get("c3d") if isinstance(motion, MarkerMotion) else None
     if isinstance(extras, C3DExtras) and extras.matches(motion.n_frames, motion.n_markers):
+        words = extras.frames * (4 * extras.points + extras.samples * extras.channels)
+        if words > MAX_WORDS:
+            raise FormatError(motion.metadata.get("path"), f"C3D data of {words} words: mocapz keeps at most "
+                                                          f"{MAX_WORDS} (cut the clip with --frames)")
         return encode_extras(extras)
     return {}
 
