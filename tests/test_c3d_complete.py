@@ -178,3 +178,17 @@ def test_library_clips_keep_their_extras() -> None:
     np.testing.assert_array_equal(got.analog_words, want.analog_words)
     np.testing.assert_array_equal(got.residual_words, want.residual_words)
     assert got.params == want.params and got.header == want.header
+
+
+def test_viewer_and_info_see_markers_and_tracks() -> None:
+    """The viewer draws the 113 markers of the Plug-in-Gait trial only; ``mocapz info`` names its tracks and
+    analog channels."""
+    from mocapz.cli.describe import describe
+    from mocapz.viewer.data import prepare_view
+
+    m = mocapz.load(data_path(PIG))
+    view = prepare_view(m, budget=None)
+    assert view.names == m.labels and view.original.shape[1] == 113
+    d = describe(data_path(PIG))
+    assert d["markers"] == 113 and d["analog_channels"] == 38 and d["c3d_storage"] == "Intel float32"
+    assert d["tracks"] == "26 ANGLES (deg), 16 POWERS (W), 20 FORCES (N), 18 MOMENTS (Nmm)"
