@@ -192,3 +192,16 @@ def test_viewer_and_info_see_markers_and_tracks() -> None:
     d = describe(data_path(PIG))
     assert d["markers"] == 113 and d["analog_channels"] == 38 and d["c3d_storage"] == "Intel float32"
     assert d["tracks"] == "26 ANGLES (deg), 16 POWERS (W), 20 FORCES (N), 18 MOMENTS (Nmm)"
+
+
+@pytest.mark.parametrize("bad", [0, -0.1, float("nan"), float("inf"), "0.1", [0.1], True])
+def test_layout_refuses_a_bad_quantum(bad: object) -> None:
+    from mocapz.errors import FormatError
+    from mocapz.format.layout import layout_dict
+    from mocapz.format.layout_check import check_layout
+
+    d = layout_dict(mocapz.load(data_path(EB015[0])).slice(0, 5))
+    check_layout(d)
+    d["quantum"] = bad
+    with pytest.raises(FormatError, match="quantum"):
+        check_layout(d)
