@@ -2,11 +2,11 @@
 holding everything else as stored (see that module), and the reverse: the file's bytes from positions and
 extras (:func:`c3d_bytes`).
 
-Points named in the POINT group's ANGLES, FORCES, MOMENTS, POWERS or REACTIONS lists (Plug-in-Gait model
-outputs) are not marker positions: they become the extras' tracks, with the unit of their list
-(``POINT:ANGLE_UNITS``...). Positions are the stored values: float32 values for float storage, and
-``float64(int16) * float64(|scale|)`` for integer storage, which :meth:`C3DExtras.words` turns back into
-the same integers.
+Points named in the POINT group's ANGLES, FORCES, MOMENTS, POWERS, REACTIONS or SCALARS lists, or in a
+list POINT:TYPE_GROUPS declares (Plug-in-Gait model outputs), are not marker positions: they become the
+extras' tracks, with the unit of their list (``POINT:ANGLE_UNITS``...). Positions are the stored values:
+float32 values for float storage, and ``float64(int16) * float64(|scale|)`` for integer storage, which
+:meth:`C3DExtras.words` turns back into the same integers.
 """
 
 from __future__ import annotations
@@ -18,7 +18,7 @@ import numpy as np
 
 from mocapz.errors import FormatError
 from mocapz.io.c3d_checks import BLOCK, PROCESSORS, C3DLayout
-from mocapz.model.c3d_extras import TRACK_KINDS, TRACK_UNIT_PARAMS, C3DExtras, float_words, word_dtype
+from mocapz.model.c3d_extras import TRACK_UNIT_PARAMS, C3DExtras, float_words, word_dtype
 
 
 def split_c3d(path: Path, layout: C3DLayout) -> tuple[list[str], np.ndarray, C3DExtras]:
@@ -106,10 +106,21 @@ def _labels(layout: C3DLayout, n: int) -> list[str]:
     return [s or f"*{i + 1}" for i, s in enumerate(labels)]
 
 
+def _unit_params(layout: C3DLayout) -> dict[str, str]:
+    """The lists of non-marker points and their unit parameters: the usual ones (ANGLES: ANGLE_UNITS...)
+    and those POINT:TYPE_GROUPS declares (pairs of a list name and its unit prefix, as Vicon writes)."""
+    out = dict(TRACK_UNIT_PARAMS)
+    pairs = [s.upper() for s in _strings(layout, "POINT", "TYPE_GROUPS")]
+    for kind, prefix in zip(pairs[0::2], pairs[1::2], strict=False):
+        if kind and prefix and kind not in ("LABELS", "DESCRIPTIONS", "UNITS"):
+            out.setdefault(kind, f"{prefix}_UNITS")
+    return out
+
+
 def _track_kinds(layout: C3DLayout, labels: list[str]) -> list[str]:
     """Per point, the model-output list naming it (``"ANGLES"``...), ``""`` for a marker."""
     named: dict[str, str] = {}
-    for kind in TRACK_KINDS:
+    for kind in _unit_params(layout):
         for label in _strings(layout, "POINT", kind):
             if label:
                 named.setdefault(label, kind)
@@ -117,7 +128,7 @@ def _track_kinds(layout: C3DLayout, labels: list[str]) -> list[str]:
 
 
 def _unit(layout: C3DLayout, kind: str) -> str:
-    units = _strings(layout, "POINT", TRACK_UNIT_PARAMS[kind])
+    units = _strings(layout, "POINT", _unit_params(layout)[kind])
     return units[0] if units else ""
 
 

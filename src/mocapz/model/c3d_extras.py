@@ -28,9 +28,10 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 PROCESSOR_ORDER = {84: "<", 85: "<", 86: ">"}  # Intel, DEC, SGI/MIPS
-TRACK_KINDS = ("ANGLES", "FORCES", "MOMENTS", "POWERS", "REACTIONS")
+#: the POINT lists naming points that are not marker positions, and the parameter giving their unit
+#: (a file's POINT:TYPE_GROUPS may name more: pairs of a list and its unit prefix)
 TRACK_UNIT_PARAMS = {"ANGLES": "ANGLE_UNITS", "FORCES": "FORCE_UNITS", "MOMENTS": "MOMENT_UNITS",
-                     "POWERS": "POWER_UNITS", "REACTIONS": "REACTION_UNITS"}
+                     "POWERS": "POWER_UNITS", "REACTIONS": "REACTION_UNITS", "SCALARS": "SCALAR_UNITS"}
 
 
 def word_dtype(processor: int, is_float: bool) -> np.dtype:
