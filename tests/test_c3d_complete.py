@@ -205,3 +205,21 @@ def test_layout_refuses_a_bad_quantum(bad: object) -> None:
     d["quantum"] = bad
     with pytest.raises(FormatError, match="quantum"):
         check_layout(d)
+
+
+def test_integer_file_with_scale_zero(tmp_path: Path) -> None:
+    """POINT:SCALE 0 in an integer file: positions 0, no quantum, no warning, the file back byte for byte."""
+    import struct
+
+    raw = bytearray(data_path(EB015[0]).read_bytes())
+    at = raw.find(struct.pack("<f", np.float32(1 / 12)), 512)  # POINT:SCALE's value
+    assert at > 512
+    raw[at:at + 4] = struct.pack("<f", 0.0)
+    (tmp_path / "zero.c3d").write_bytes(bytes(raw))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        m = mocapz.load(tmp_path / "zero.c3d")
+        back = mocapz.decompress(mocapz.compress(m))
+        mocapz.save(back, tmp_path / "out.c3d")
+    assert m.quantum is None and np.nanmax(np.abs(m.positions)) == 0
+    assert (tmp_path / "out.c3d").read_bytes() == bytes(raw)

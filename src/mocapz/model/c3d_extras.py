@@ -153,10 +153,11 @@ class C3DExtras:
         if self.is_float:
             return float_words(values, self.processor)
         s = self.scales[index]
+        s = np.where((s > 0) & np.isfinite(s), s, 1.0)  # a scale of 0: the stored words are kept (fix_words)
         s = s[:, None] if values.ndim == 3 else s
-        with np.errstate(invalid="ignore"):
+        with np.errstate(invalid="ignore", over="ignore"):
             q = np.round(np.where(np.isfinite(values), values, 0.0) / s)
-        return np.clip(q, -32768, 32767).astype(np.int64)
+        return np.nan_to_num(np.clip(q, -32768, 32767)).astype(np.int64)
 
     def residual_values(self) -> np.ndarray:
         """``(frames, points)`` the residual words as numbers (negative: the sample is missing)."""
