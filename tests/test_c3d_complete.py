@@ -223,3 +223,38 @@ def test_integer_file_with_scale_zero(tmp_path: Path) -> None:
         mocapz.save(back, tmp_path / "out.c3d")
     assert m.quantum is None and np.nanmax(np.abs(m.positions)) == 0
     assert (tmp_path / "out.c3d").read_bytes() == bytes(raw)
+
+
+def test_c3d_sections_as_documented() -> None:
+    """docs/format.md 5.1, by hand: the c3d.file section holds the JSON, the header and the parameter section;
+    c3d.fix starts with the packed mask of the missing samples."""
+    import json
+    import lzma
+
+    import zstandard
+
+    from mocapz.format.container import Container
+    from mocapz.format.entropy import read_uvarint
+
+    path = data_path(ANALOGS)
+    raw = path.read_bytes()
+    box = Container.from_bytes(mocapz.compress(path, codec="lossless"))
+    assert [k for k in box.sections if k.startswith("c3d.")] == ["c3d.file", "c3d.res", "c3d.trk", "c3d.ana", "c3d.fix"]
+    file = box.sections["c3d.file"]
+    assert file[0] == 1
+    static = lzma.decompress(file[1:], format=lzma.FORMAT_XZ)
+    parts, pos = [], 0
+    for _ in range(4):
+        n, pos = read_uvarint(static, pos)
+        parts.append(static[pos:pos + n])
+        pos += n
+    info = json.loads(parts[0])
+    assert info["processor"] == 84 and info["float"] is True and info["channels"] == 38 and info["samples"] == 20
+    assert info["markers"] == list(range(51)) and info["tracks"] == []
+    assert parts[1] == raw[:512] and parts[2] == b"" and parts[3] == raw[512:28 * 512]
+    assert static[pos:] == b"\x01\x00"  # the data ends the file: no trailing bytes
+    fix = box.sections["c3d.fix"]
+    n, pos = read_uvarint(fix, 0)
+    mask = np.unpackbits(np.frombuffer(zstandard.ZstdDecompressor().decompress(fix[pos:pos + n]), np.uint8))
+    m = mocapz.load(path)
+    np.testing.assert_array_equal(mask[:m.missing.size].astype(bool), m.missing.ravel())
