@@ -120,8 +120,8 @@ def test_integer_c3d_is_the_same_integers() -> None:
 
 
 def test_sliced_clip_writes_a_consistent_file(tmp_path: Path) -> None:
-    """Frames 100:200 of the analog trial: the header and POINT:FRAMES say 100 frames, the analogs are those
-    frames' samples, and every other parameter is the source's."""
+    """Frames 100:200 of the analog trial: the header, POINT:FRAMES and TRIAL:ACTUAL_START_FIELD / END_FIELD
+    say those frames, the analogs are those frames' samples, and every other parameter is the source's."""
     import ezc3d
 
     m = mocapz.load(data_path(ANALOGS))
@@ -133,6 +133,8 @@ def test_sliced_clip_writes_a_consistent_file(tmp_path: Path) -> None:
     np.testing.assert_array_equal(got["data"]["analogs"], src["data"]["analogs"][:, :, 2000:4000])
     a, b = _params(src), _params(got)
     assert b.pop(("POINT", "FRAMES")) == [100]
+    assert a.pop(("TRIAL", "ACTUAL_START_FIELD")) == [1, 0] and b.pop(("TRIAL", "ACTUAL_START_FIELD")) == [101, 0]
+    assert a.pop(("TRIAL", "ACTUAL_END_FIELD")) == [580, 0] and b.pop(("TRIAL", "ACTUAL_END_FIELD")) == [200, 0]
     a.pop(("POINT", "FRAMES"))
     assert a == b
     assert (tmp_path / "cut.c3d").stat().st_size % 512 == 0

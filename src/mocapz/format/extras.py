@@ -44,6 +44,7 @@ from mocapz.model.motion import AnyMotion, MarkerMotion
 PREFIX = "c3d."
 VERSION = 1
 MAX_WORDS = 1 << 26  # most words (residual, track, analog) one clip's sections may hold: 512 MiB decoded
+FRAME_PARAMS = ("POINT:FRAMES", "TRIAL:ACTUAL_START_FIELD", "TRIAL:ACTUAL_END_FIELD")
 MAX_STATIC = 1 << 26  # most bytes of header, parameter section and trailing bytes
 XZ_MEMORY = 1 << 26  # the most memory an xz stream here may ask of its decoder
 MODE_INT, MODE_FLOAT_INT, MODE_BITS, MODE_XZ = 0, 1, 2, 3
@@ -197,7 +198,7 @@ def encode_extras(extras: C3DExtras) -> dict[str, bytes]:
             "markers": extras.marker_index.tolist(), "tracks": extras.track_index.tolist(),
             "track_labels": extras.track_labels, "track_kinds": extras.track_kinds,
             "track_units": extras.track_units, "samples": extras.samples, "channels": extras.channels,
-            "frames_param": list(extras.frames_param) if extras.frames_param is not None else None}
+            "frame_params": {k: list(v) for k, v in extras.frame_params.items()}}
     blob = json.dumps(info, separators=(",", ":")).encode()
     parts = [blob, extras.header, extras.gap, extras.params]
     static = b"".join(write_uvarint(len(p)) + p for p in parts)
@@ -282,7 +283,6 @@ def decode_extras(sections: dict[str, bytes], frames: int, markers: int) -> C3DE
     trk = decode_words(sections[PREFIX + "trk"], (frames, 3 * n_tracks), *fmt).reshape(frames, n_tracks, 3)
     ana = decode_words(sections[PREFIX + "ana"], (frames * s, c), *fmt)
     mask, fix = _fix(sections[PREFIX + "fix"], frames, markers, fmt)
-    fp = info["frames_param"]
     return C3DExtras(header=parts[1], gap=parts[2], params=parts[3], tail=tail, processor=fmt[1], is_float=fmt[0],
                      scales=np.asarray(info["scales"], dtype=np.float64),
                      marker_index=np.asarray(info["markers"], dtype=np.int64),
@@ -290,7 +290,7 @@ def decode_extras(sections: dict[str, bytes], frames: int, markers: int) -> C3DE
                      track_labels=list(info["track_labels"]), track_kinds=list(info["track_kinds"]),
                      track_units=list(info["track_units"]), residual_words=res, track_words=trk,
                      fix_mask=mask, fix_words=fix, analog_words=ana, samples=s,
-                     frames_param=None if fp is None else (int(fp[0]), int(fp[1])))
+                     frame_params={k: (int(v[0]), int(v[1]), int(v[2])) for k, v in info["frame_params"].items()})
 
 
 def _fix(data: bytes, frames: int, markers: int, fmt: tuple[bool, int]) -> tuple[np.ndarray, np.ndarray]:
@@ -334,8 +334,10 @@ def _info(blob: bytes, params: bytes, markers: int) -> dict[str, Any]:
     for key in ("samples", "channels"):
         if type(info.get(key)) is not int or not 0 <= info[key] <= 65535:
             raise _bad(key)
-    fp = info.get("frames_param")
-    if fp is not None and not (isinstance(fp, list) and len(fp) == 2 and all(type(x) is int for x in fp)
-                               and fp[1] in (2, 4) and 0 <= fp[0] <= len(params) - fp[1]):
-        raise _bad("frames_param")
+    fp = info.get("frame_params")
+    if not isinstance(fp, dict) or not all(
+            k in FRAME_PARAMS and isinstance(v, list) and len(v) == 3 and all(type(x) is int for x in v)
+            and v[1] in (2, 4) and 1 <= v[2] <= 65535 and 0 <= v[0] <= len(params) - v[1] * min(v[2], 2)
+            for k, v in fp.items()):
+        raise _bad("frame_params")
     return info

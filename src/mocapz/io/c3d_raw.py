@@ -45,7 +45,7 @@ def split_c3d(path: Path, layout: C3DLayout) -> tuple[list[str], np.ndarray, C3D
         fix_mask=np.zeros((layout.frames, markers.size), dtype=bool),
         fix_words=np.zeros((layout.frames, markers.size, 3), dtype=np.int64),
         analog_words=words[:, 4 * n:].reshape(layout.frames * layout.samples, layout.channels).copy(),
-        samples=layout.samples, frames_param=_frames_param(raw, layout))
+        samples=layout.samples, frame_params=_frame_params(raw, layout))
     stored = point_words[:, markers, :3]
     positions = extras.values(stored, markers)
     missing = (extras.residual_values()[:, markers] < 0) | ~np.isfinite(positions).all(axis=2)
@@ -145,29 +145,32 @@ def _point_scales(layout: C3DLayout) -> np.ndarray:
     return scales
 
 
-def _frames_param(raw: bytes, layout: C3DLayout) -> tuple[int, int] | None:
-    """Where POINT:FRAMES's value lies in the parameter section (byte offset, kind), to patch it."""
-    param = layout.params.get(("POINT", "FRAMES"))
-    if param is None or param.kind not in (2, 4) or len(param.data) < param.kind:
-        return None
+FRAME_PARAMS = (("POINT", "FRAMES"), ("TRIAL", "ACTUAL_START_FIELD"), ("TRIAL", "ACTUAL_END_FIELD"))
+
+
+def _frame_params(raw: bytes, layout: C3DLayout) -> dict[str, tuple[int, int, int]]:
+    """Where the frame-count-dependent parameters (:data:`FRAME_PARAMS`) hold their values in the parameter
+    section: ``{"GROUP:NAME": (byte offset, kind, number of values)}``, for the numeric ones present."""
     start = (layout.header.param_block - 1) * BLOCK
     section = raw[start:layout.data_offset]
     order = PROCESSORS[layout.header.processor]
+    out: dict[str, tuple[int, int, int]] = {}
     pos = 4
-    while pos + 2 <= len(section):  # the records were checked by c3d_checks; find the one holding the value
+    while pos + 2 <= len(section):  # the records were checked by c3d_checks
         n_chars, gid = struct.unpack("bb", section[pos:pos + 2])
         if n_chars == 0 or gid == 0:
-            return None
+            break
         name_end = pos + 2 + abs(n_chars)
         (offset,) = struct.unpack(f"{order}H", section[name_end:name_end + 2])
-        if gid > 0 and section[pos + 2:name_end].decode("latin-1").strip().upper() == "FRAMES" \
-                and _group_name(layout, gid, section) == "POINT":
-            n_dims = section[name_end + 3]
-            return name_end + 4 + n_dims, param.kind
+        if gid > 0:
+            key = (_group_name(layout, gid, section), section[pos + 2:name_end].decode("latin-1").strip().upper())
+            param = layout.params.get(key)
+            if key in FRAME_PARAMS and param is not None and param.kind in (2, 4) and param.count >= 1:
+                out[":".join(key)] = (name_end + 4 + section[name_end + 3], param.kind, param.count)
         if not offset:
-            return None
+            break
         pos = name_end + offset
-    return None
+    return out
 
 
 def _group_name(layout: C3DLayout, gid: int, section: bytes) -> str:

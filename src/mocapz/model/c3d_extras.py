@@ -23,7 +23,7 @@ file or container code.
 from __future__ import annotations
 
 import struct
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -88,7 +88,9 @@ class C3DExtras:
         fix_words: ``(frames, markers, 3)`` stored x, y, z words where ``fix_mask`` (0 elsewhere).
         analog_words: ``(frames * samples, channels)`` the analog samples.
         samples: analog samples per point frame.
-        frames_param: ``(byte offset in params, kind)`` of the POINT:FRAMES value, or ``None``.
+        frame_params: where the parameters that count frames hold their values in ``params``:
+            ``{"POINT:FRAMES" / "TRIAL:ACTUAL_START_FIELD" / "TRIAL:ACTUAL_END_FIELD": (byte offset, kind
+            2 int16 or 4 float, number of values)}``, patched by :meth:`slice`.
     """
 
     header: bytes
@@ -109,7 +111,7 @@ class C3DExtras:
     fix_words: np.ndarray
     analog_words: np.ndarray
     samples: int
-    frames_param: tuple[int, int] | None = None
+    frame_params: dict[str, tuple[int, int, int]] = field(default_factory=dict)
 
     # ------------------------------------------------------------------ sizes
     @property
@@ -179,8 +181,32 @@ class C3DExtras:
         return self.analog_words.astype(np.float64)
 
     # ------------------------------------------------------------------ frames
+    def _get(self, where: tuple[int, int, int]) -> int:
+        """A frame number stored at ``where`` (int16 words read unsigned, low word first: Vicon's 32-bit
+        TRIAL fields; or a float)."""
+        at, kind, count = where
+        if kind == 4:
+            return int(float_values(np.frombuffer(self.params[at:at + 4], dtype=word_dtype(self.processor, True)),
+                                    self.processor)[0])
+        words = struct.unpack(f"{PROCESSOR_ORDER[self.processor]}{min(count, 2)}H",
+                              self.params[at:at + 2 * min(count, 2)])
+        return int(words[0] + (words[1] << 16 if len(words) > 1 else 0))
+
+    def _put(self, params: bytearray, where: tuple[int, int, int], value: int) -> None:
+        """Store frame number ``value`` at ``where`` (see :meth:`_get`)."""
+        at, kind, count = where
+        value = max(int(value), 0)
+        if kind == 4:
+            params[at:at + 4] = float_words(np.array([float(value)]), self.processor).astype(
+                word_dtype(self.processor, True)).tobytes()
+        elif count >= 2:
+            struct.pack_into(f"{PROCESSOR_ORDER[self.processor]}HH", params, at, value & 0xFFFF, value >> 16 & 0xFFFF)
+        else:
+            struct.pack_into(f"{PROCESSOR_ORDER[self.processor]}H", params, at, value & 0xFFFF)
+
     def slice(self, start: int, stop: int | None = None) -> C3DExtras:
-        """Frames ``start:stop``: the header's frame numbers and POINT:FRAMES patched, the tail dropped."""
+        """Frames ``start:stop``: the header's frame numbers, POINT:FRAMES and TRIAL:ACTUAL_START_FIELD /
+        ACTUAL_END_FIELD patched, the tail dropped (the file is padded to a block when written)."""
         rng = range(self.frames)[start:stop]
         a, b = rng.start, rng.stop
         if a == 0 and b == self.frames:
@@ -191,13 +217,15 @@ class C3DExtras:
         first = struct.unpack(f"{order}H", head[6:8])[0] + a
         struct.pack_into(f"{order}HH", head, 6, first & 0xFFFF, (first + n - 1) & 0xFFFF)
         params = bytearray(self.params)
-        if self.frames_param is not None:
-            at, kind = self.frames_param
-            if kind == 2:
-                struct.pack_into(f"{order}H", params, at, n & 0xFFFF)
-            elif kind == 4:
-                params[at:at + 4] = float_words(np.array([float(n)]), self.processor).astype(
-                    word_dtype(self.processor, True)).tobytes()
+        fp = self.frame_params
+        if "POINT:FRAMES" in fp:
+            self._put(params, fp["POINT:FRAMES"], n)
+        start_field = first
+        if "TRIAL:ACTUAL_START_FIELD" in fp:
+            start_field = self._get(fp["TRIAL:ACTUAL_START_FIELD"]) + a
+            self._put(params, fp["TRIAL:ACTUAL_START_FIELD"], start_field)
+        if "TRIAL:ACTUAL_END_FIELD" in fp:
+            self._put(params, fp["TRIAL:ACTUAL_END_FIELD"], start_field + n - 1)
         s = self.samples
         return replace(self, header=bytes(head), params=bytes(params), tail=None,
                        residual_words=self.residual_words[a:b].copy(), track_words=self.track_words[a:b].copy(),
