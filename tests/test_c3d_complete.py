@@ -260,3 +260,11 @@ def test_c3d_sections_as_documented() -> None:
     mask = np.unpackbits(np.frombuffer(zstandard.ZstdDecompressor().decompress(fix[pos:pos + n]), np.uint8))
     m = mocapz.load(path)
     np.testing.assert_array_equal(mask[:m.missing.size].astype(bool), m.missing.ravel())
+
+
+def test_lossy_decode_drops_the_quantum() -> None:
+    """Decoded values that are no longer multiples of the scale do not claim a quantum (lossless ones do)."""
+    m = mocapz.load(data_path(EB015[4])).slice(0, 100)
+    assert m.quantum is not None
+    assert mocapz.decompress(mocapz.compress(m, codec="lossless")).quantum == m.quantum
+    assert mocapz.decompress(mocapz.compress(m, codec="quant")).quantum is None
