@@ -51,7 +51,11 @@ GROWTH = {"bits": 3, "tolerance": 0.05}  # fixed parameters of the growth curves
 
 
 def load(rel: str) -> Any:
-    return mocapz.load(DATA / rel)
+    """A shared clip; for C3D the marker stream only, as the paper counts (the file's analogs, parameters
+    and residuals, kept losslessly in ``.mcz`` files by default, are left out of these tables)."""
+    m = mocapz.load(DATA / rel)
+    m.metadata.pop("c3d", None)
+    return m
 
 
 def mm(motion: Any, value: float) -> float:

@@ -199,6 +199,41 @@ def test_damaged_sections(codec: str, kind: str) -> None:
     assert not bad, _report(bad)
 
 
+def _c3d_cases() -> Iterator[tuple[str, bytes]]:
+    """The ``c3d.*`` sections (parameters, residual words, model-output tracks, analogs, missing samples) of
+    20 frames of the Plug-in-Gait trial, each missing, then damaged in every way of :func:`_damage`."""
+    clip = mocapz.load(data_path("other/markers/btkdata/c3d_samples/PiG_Motion-FlatFoot-Full.c3d")).slice(0, 20)
+    box = Container.from_bytes(mocapz.compress(clip, codec="lossless"))
+    mine = [k for k in box.sections if k.startswith("c3d.")]
+    assert len(mine) == 5
+    payloads = list(box.sections.values())
+    for key in mine:
+        rng = np.random.default_rng(zlib.crc32(f"c3d/{key}".encode()))
+        missing = {k: v for k, v in box.sections.items() if k != key}
+        yield f"{key}: missing", Container(box.codec, box.codec_version, box.layout, missing).to_bytes()
+        for how, bad in _damage(box.sections[key], rng, payloads):
+            yield f"{key}: {how}", Container(box.codec, box.codec_version, box.layout,
+                                             dict(box.sections, **{key: bad})).to_bytes()
+
+
+def test_damaged_c3d_sections() -> None:
+    """Damaged C3D extras give a FormatError or extras that describe the decoded clip and write a file."""
+    from mocapz.io.c3d_raw import c3d_bytes
+
+    count, bad = _referee(_c3d_cases())
+    assert count > 100
+    assert not bad, _report(bad)
+    with _limits():
+        for name, data in _c3d_cases():
+            try:
+                motion = mocapz.decompress(data)
+            except FormatError:
+                continue
+            extras = motion.metadata["c3d"]
+            assert extras.matches(motion.n_frames, motion.n_markers), name
+            c3d_bytes(motion.positions, extras)
+
+
 # ------------------------------------------------------------------------------------- damaged layout
 def _raw_layout(layout: bytes) -> tuple[dict[str, Any], bytes]:
     """The layout's JSON as written (offsets possibly in the numeric block) and its numeric block."""

@@ -10,6 +10,7 @@ from typing import Any
 from mocapz.codecs import CodecInfo, get_codec
 from mocapz.errors import FormatError, OptionError
 from mocapz.format.container import Container
+from mocapz.format.extras import PREFIX, attach, sections_of, split_sections
 from mocapz.format.layout import decode_header, encode_layout
 from mocapz.model.header import ClipHeader
 from mocapz.model.motion import AnyMotion, MarkerMotion, Motion
@@ -43,6 +44,9 @@ def compress_checked(motion: AnyMotion, info: CodecInfo, checked: dict[str, Any]
         raise OptionError(f"the {info.name} codec does not take {motion.kind} data "
                           f"(it takes {' and '.join(info.kinds)} data)")
     sections = info.encode(motion, **checked)
+    if any(key.startswith(PREFIX) for key in sections):
+        raise FormatError(None, f"the {info.name} codec wrote a section named {PREFIX}*, which is reserved")
+    sections = {**sections, **sections_of(motion)}  # the C3D extras, coded losslessly whatever the codec
     return Container(info.name, info.version, encode_layout(motion), sections).to_bytes()
 
 
@@ -66,8 +70,9 @@ def decompress(data: bytes, path: str | Path | None = None) -> AnyMotion:
     if box.codec_version != info.version:
         raise FormatError(path, f"codec {box.codec!r} version {box.codec_version} is not supported "
                                 f"(this mocapz has version {info.version})")
+    codec_sections, extra_sections = split_sections(box.sections)
     try:
-        return info.decode(box.sections, header)
+        return attach(info.decode(codec_sections, header), extra_sections)
     except FormatError as exc:
         raise FormatError(path, exc.problem) from None
     except (ValueError, IndexError, KeyError, TypeError, OverflowError) as exc:

@@ -17,6 +17,7 @@ from mocapz.codecs.patterns import VERSION
 from mocapz.codecs.patterns.library import CodedGroup, decode_member, encode_library
 from mocapz.codecs.patterns.pipeline import Settings
 from mocapz.errors import FormatError, OptionError
+from mocapz.format.extras import attach, sections_of, split_sections
 from mocapz.format.library import Library, clip_entry, read_library, unique_names
 from mocapz.model.motion import AnyMotion
 
@@ -38,8 +39,10 @@ def compress_library(motions: list[AnyMotion], **options: Any) -> bytes:
     checked = get_codec(CODEC).validate(options)
     names = unique_names(motions)
 
+    extras = [sections_of(m) for m in motions]  # C3D extras: lossless, coded once
+
     def write(coded: list[CodedGroup], settings: Settings) -> bytes:
-        return assemble(motions, names, coded, settings).to_bytes()
+        return assemble(motions, names, coded, settings, extras).to_bytes()
 
     def read(data: bytes, clip: int) -> AnyMotion:
         return read_clip(data, names[clip])
@@ -47,15 +50,17 @@ def compress_library(motions: list[AnyMotion], **options: Any) -> bytes:
     return encode_library(motions, checked, write, read)
 
 
-def assemble(motions: list[AnyMotion], names: list[str], coded: list[CodedGroup], settings: Settings) -> Library:
-    """The library of coded groups: each group's shared sections followed by its clips'."""
+def assemble(motions: list[AnyMotion], names: list[str], coded: list[CodedGroup], settings: Settings,
+             extras: list[dict[str, bytes]] | None = None) -> Library:
+    """The library of coded groups: each group's shared sections followed by its clips' (with their C3D
+    extras' sections, :func:`mocapz.format.extras.sections_of`)."""
     lib = Library()
     clips: list[dict[str, Any]] = [{}] * len(motions)
     groups = []
     for g, cg in enumerate(coded):
         lib.add_group(g, cg.shared)
         for i, own in zip(cg.members, cg.clips, strict=True):
-            lib.add_clip(i, motions[i], own)
+            lib.add_clip(i, motions[i], {**own, **(extras[i] if extras else {})})
             clips[i] = clip_entry(motions[i], names[i], g)
         groups.append({"kind": clips[cg.members[0]]["kind"], "clips": len(cg.members), "nodes": len(cg.node_names),
                        "node_names": cg.node_names, "segments": cg.segments, "clusters": cg.clusters})
@@ -78,7 +83,8 @@ def read_clip(data: bytes, clip: str, path: str | os.PathLike[str] | None = None
     j = lib.clip_number(clip, path)
     try:
         shared = lib.group_sections(lib.group_of(j))
-        return decode_member(lib.clip_header(j), shared, lib.clip_sections(j))
+        own, c3d = split_sections(lib.clip_sections(j))
+        return attach(decode_member(lib.clip_header(j), shared, own), c3d)
     except FormatError as exc:
         raise FormatError(path, exc.problem) from None
     except (ValueError, IndexError, KeyError, TypeError) as exc:

@@ -33,6 +33,8 @@ from mocapz.cli.common import (
 from mocapz.cli.outputs import check_outputs, write_output
 from mocapz.errors import MocapzError, OptionError
 from mocapz.files import STDIN_NAME, compressed_name, load_bytes, sniff
+from mocapz.format.container import Container
+from mocapz.format.extras import PREFIX as EXTRAS_PREFIX
 from mocapz.io import MOTION_EXTENSIONS
 
 FORMATS = tuple(e.lstrip(".") for e in MOTION_EXTENSIONS)
@@ -139,10 +141,14 @@ def _one(path: Path, out: Path, codec: str, options: dict[str, Any], asf: Path |
                 encode_ms_per_frame=1000 * elapsed / max(motion.n_frames, 1),
                 distortion_pct=rep.distortion_pct, max_err=rep.max_err, max_err_cm=rep.max_err_cm, arms=rep.arms,
                 arms_cm=rep.arms_cm)
+    extras = sum(len(v) for k, v in Container.from_bytes(data).sections.items() if k.startswith(EXTRAS_PREFIX))
+    figs["c3d_extras_bytes"] = extras
+    held = (f" ({extras} of them the rest of the C3D: parameters, residuals, analogs, model outputs; lossless)"
+            if extras else "")
     cm = rep.unit_cm is not None
     err = (f"max error {fmt(rep.max_err_cm, ' cm')}, ARMS {fmt(rep.arms_cm, ' cm')}" if cm
            else f"max error {fmt(rep.max_err)}, ARMS {fmt(rep.arms)} (file units)")
-    say.info(f"{name} -> {out}: {figs['compressed_bytes']} bytes, ratio {fmt(figs['ratio'])} to float32, "
+    say.info(f"{name} -> {out}: {figs['compressed_bytes']} bytes{held}, ratio {fmt(figs['ratio'])} to float32, "
              f"{fmt(figs['ratio_file'])} to the file; verified: d {rep.distortion_pct:.4g} %, {err}; "
              f"{codec}, {elapsed:.2f} s")
     say.detail(f"  {motion.n_frames} frames at {motion.frame_rate:g} Hz, {figs['encode_ms_per_frame']:.3f} ms/frame")

@@ -6,6 +6,7 @@ from pathlib import Path
 from typing import Any
 
 from mocapz.errors import FormatError
+from mocapz.model.c3d_extras import C3DExtras
 from mocapz.model.motion import Motion
 
 
@@ -22,6 +23,25 @@ def describe_motion(motion: Any) -> dict[str, Any]:
         d.update(markers=motion.n_markers, units=motion.units, unit_cm=motion.unit_cm,
                  missing_pct=100.0 * float(motion.missing.mean()) if motion.positions.size else 0.0,
                  labels=motion.labels)
+        extras = motion.metadata.get("c3d")
+        if isinstance(extras, C3DExtras):
+            d.update(_c3d_summary(extras, motion.frame_rate))
+    return d
+
+
+def _c3d_summary(extras: C3DExtras, rate: float) -> dict[str, Any]:
+    """What a C3D file holds besides its markers: storage, model-output tracks, analog channels."""
+    cpu = {84: "Intel", 85: "DEC", 86: "SGI/MIPS"}[extras.processor]
+    storage = f"{cpu} float32" if extras.is_float else f"{cpu} int16 x {extras.quantum or 'per-point scales'}"
+    kinds: dict[str, int] = {}
+    for kind, unit in zip(extras.track_kinds, extras.track_units, strict=True):
+        key = f"{kind} ({unit})" if unit else kind
+        kinds[key] = kinds.get(key, 0) + 1
+    d: dict[str, Any] = {"c3d_storage": storage,
+                         "tracks": ", ".join(f"{n} {k}" for k, n in kinds.items()) or "none",
+                         "analog_channels": extras.channels}
+    if extras.channels:
+        d["analog_rate"] = rate * extras.samples
     return d
 
 

@@ -106,7 +106,7 @@ def layout_dict(motion: AnyMotion) -> dict[str, Any]:
             "decimals": None if motion.decimals is None else motion.decimals.tolist(),
             "metadata": meta,
         }
-    return {
+    d: dict[str, Any] = {
         "kind": "markers",
         "labels": motion.labels,
         "units": motion.units,
@@ -117,6 +117,9 @@ def layout_dict(motion: AnyMotion) -> dict[str, Any]:
         "decimals": motion.decimals,
         "metadata": meta,
     }
+    if motion.quantum is not None:  # absent when None: older layouts keep their bytes
+        d["quantum"] = float(motion.quantum)
+    return d
 
 
 def encode_layout(motion: AnyMotion) -> bytes:
@@ -199,7 +202,8 @@ def header_from_layout(layout: dict[str, Any]) -> ClipHeader:
             return ClipHeader("skeleton", skeleton=skeleton_from_dict(layout),
                               decimals=None if dec is None else np.asarray(dec, dtype=np.int64), **common)
         labels = [str(x) for x in layout["labels"]]
+        quantum = layout.get("quantum")
         return ClipHeader("markers", labels=labels, units=str(layout["units"]), decimals=layout.get("decimals"),
-                          **common)
+                          quantum=None if quantum is None else float(quantum), **common)
     except (KeyError, TypeError, ValueError, OverflowError) as exc:
         raise FormatError(None, f"corrupted layout header ({exc})") from None

@@ -96,6 +96,9 @@ def check_layout(d: dict[str, Any]) -> None:
         dec = d.get("decimals")
         if dec is not None and not (_is_int(dec) and 0 <= dec <= MAX_DECIMALS):
             raise _bad("decimals", f"an integer in 0..{MAX_DECIMALS} or null expected")
+        quantum = d.get("quantum")
+        if quantum is not None and not (_is_real(quantum) and quantum > 0):
+            raise _bad("quantum", "a positive number or null expected")
     else:
         width = _check_skeleton(d)
     if frames * max(width, 1) * 6 > MAX_VALUES:

@@ -1,11 +1,13 @@
 """C3D marker files, read through ``ezc3d`` (or mocapz's own decoder where ezc3d cannot) and written
-through ``ezc3d``.
+back in their own storage (or, for a motion that did not come from a C3D file, through ``ezc3d``).
 
-Reading keeps the 3D points (``POINT:LABELS``, ``POINT:RATE``, ``POINT:UNITS``, first frame), turns
-missing samples (ezc3d NaN or a negative residual) into NaN, and keeps the analog channels, their
-labels, units and rate, the point residuals and descriptions in ``MarkerMotion.metadata`` so that
-:func:`write_c3d` puts them back. Other parameter groups (events, force platforms, subjects) are not
-carried over.
+Reading keeps the marker positions (``POINT:LABELS``, ``POINT:RATE``, ``POINT:UNITS``, first frame),
+missing samples (a negative residual word or a non-finite value) as NaN, and everything else the file
+holds in a :class:`~mocapz.model.c3d_extras.C3DExtras` (``metadata["c3d"]``, made by
+:mod:`mocapz.io.c3d_raw`): the header and parameter section verbatim, residual words, analog samples,
+the model outputs (points named in POINT:ANGLES / FORCES / MOMENTS / POWERS / REACTIONS, which are not
+markers). :func:`write_c3d` writes them back byte for byte. For Python users ``metadata`` also holds the
+markers' residuals, the analog channels as ezc3d scales them, their labels, units and rate.
 
 Before ezc3d sees a file it is checked by :func:`mocapz.io.c3d_checks.check_c3d_file` (ezc3d segfaults
 on some corrupt parameter sections, silently reads a truncated file as a shorter clip and raises bare C++
@@ -27,7 +29,9 @@ import numpy as np
 
 from mocapz.errors import FormatError, MocapzError
 from mocapz.io.c3d_checks import C3DLayout, check_c3d_file
+from mocapz.io.c3d_raw import c3d_bytes, split_c3d
 from mocapz.io.common import atomic_write
+from mocapz.model.c3d_extras import C3DExtras
 from mocapz.model.motion import MarkerMotion
 
 FLOAT32_MAX = float(np.finfo(np.float32).max)
@@ -51,16 +55,19 @@ def read_c3d(path: str | os.PathLike[str]) -> MarkerMotion:
     path = Path(path)
     layout = check_c3d_file(path)
     c3d, reader = _load(path, layout)
-    positions, residuals = _point_data(c3d, path)
+    _check_frame_count(c3d, np.asarray(c3d["data"]["points"]).shape[2], path)
+    labels, positions, extras = split_c3d(path, layout)
     params = c3d["parameters"]
     units = _first_string(params, "POINT", "UNITS")
-    metadata = _metadata(path, c3d, layout, residuals)
+    metadata = _metadata(path, c3d, layout, _marker_residuals(extras), extras.marker_index)
     metadata["c3d_reader"] = reader
+    metadata["c3d"] = extras
     if units is None:
         metadata["units_note"] = "POINT:UNITS missing; millimetres assumed (the C3D default)"
     return MarkerMotion(
-        labels=_fit(_strings(params, "POINT", "LABELS"), positions.shape[1], None),
+        labels=labels,
         positions=positions,
+        quantum=extras.quantum,
         frame_rate=_point_rate(c3d, params, path),
         units=units or "mm",
         name=path.stem,
@@ -70,27 +77,26 @@ def read_c3d(path: str | os.PathLike[str]) -> MarkerMotion:
     )
 
 
-def _point_data(c3d: Any, path: Path) -> tuple[np.ndarray, np.ndarray]:
-    """Positions ``(frames, markers, 3)`` with NaN gaps and residuals ``(frames, markers)`` (-1 = gap)."""
-    points = np.asarray(c3d["data"]["points"], dtype=np.float64)
-    residuals = np.asarray(c3d["data"]["meta_points"]["residuals"], dtype=np.float64)[0].T.copy()
-    _check_frame_count(c3d, points.shape[2], path)
-    positions = points[:3].transpose(2, 1, 0).copy()  # (3, markers, frames) -> (frames, markers, 3)
-    missing = (residuals < 0) | ~np.isfinite(positions).all(axis=2)
-    positions[missing] = np.nan
-    residuals[missing] = -1.0
-    return positions, residuals
+def _marker_residuals(extras: C3DExtras) -> np.ndarray:
+    """The markers' residuals ``(frames, markers)`` as ezc3d gives them: -1 for a missing sample (a
+    negative residual word), else the word's high byte times the point's ``|scale|``."""
+    words = np.trunc(extras.residual_values()[:, extras.marker_index])
+    scales = extras.scales[extras.marker_index]
+    with np.errstate(invalid="ignore"):
+        return np.where(words < 0, -1.0, np.floor(words / 256) * scales[None, :])
 
 
-def _metadata(path: Path, c3d: Any, layout: C3DLayout, residuals: np.ndarray) -> dict[str, Any]:
+def _metadata(path: Path, c3d: Any, layout: C3DLayout, residuals: np.ndarray,
+              markers: np.ndarray) -> dict[str, Any]:
     params = c3d["parameters"]
+    descriptions = _fit(_strings(params, "POINT", "DESCRIPTIONS"), layout.points, "")
     meta: dict[str, Any] = {
         "path": str(path),
         "file_bytes": path.stat().st_size,
         "first_frame": int(c3d["header"]["points"]["first_frame"]) + 1,
         "residuals": residuals,
         "point_scale": _first_number(params, "POINT", "SCALE", -1.0),
-        "point_descriptions": _fit(_strings(params, "POINT", "DESCRIPTIONS"), residuals.shape[1], ""),
+        "point_descriptions": [descriptions[i] for i in markers],
         "c3d_float": layout.header.is_float,
         "c3d_processor": layout.header.processor,
     }
@@ -195,14 +201,26 @@ def _analog_metadata(c3d: Any, params: Any) -> dict[str, Any]:
 
 
 def write_c3d(motion: MarkerMotion, path: str | os.PathLike[str], force: bool = False) -> None:
-    """Write a :class:`MarkerMotion` as a float C3D through ezc3d, atomically.
+    """Write a :class:`MarkerMotion` as a C3D file, atomically.
 
-    Points are stored as float32 in ``motion.units``; a sample with any non-finite coordinate is written
-    as missing (coordinates 0, residual -1). Analog channels in ``motion.metadata`` (as
-    :func:`read_c3d` stores them) are written back when their sample count matches the frame count;
+    A motion read from a C3D file (its :class:`~mocapz.model.c3d_extras.C3DExtras` in
+    ``metadata["c3d"]``, for the same frames and markers) is written back in its own storage: the header
+    and every parameter as read, the markers from ``motion.positions`` (int16 at the file's scale or
+    float32, in its processor's layout), the residual words, model outputs and analogs as read; read
+    and written unchanged, the file comes back byte for byte.
+
+    Any other motion is written as a float C3D through ezc3d: points as float32 in ``motion.units``; a
+    sample with any non-finite coordinate is written as missing (coordinates 0, residual -1). Analog
+    channels in ``motion.metadata`` are written back when their sample count matches the frame count;
     otherwise they are dropped with a warning. An existing ``path`` is kept unless ``force``.
     """
     path = Path(path)
+    extras = motion.metadata.get("c3d")
+    if isinstance(extras, C3DExtras) and extras.matches(motion.n_frames, motion.n_markers):
+        _check_writable(motion, path)
+        data = c3d_bytes(motion.positions, extras)
+        atomic_write(path, lambda tmp: tmp.write_bytes(data), force=force)
+        return
     c3d = _build(motion, path)
     atomic_write(path, lambda tmp: _ezc3d_write(c3d, tmp, path), force=force)
 

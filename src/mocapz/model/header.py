@@ -38,6 +38,8 @@ class ClipHeader:
         decimals: skeletal clips: ``(channels,)`` decimals of each column in the source, or ``None``;
             marker clips: the decimals of the values (TRC text), or ``None``.
         metadata: the source metadata a writer needs (:data:`KEPT_METADATA`).
+        quantum: marker clips: the source's storage step (integer C3D: ``|POINT:SCALE|``), else ``None``;
+            a motion made by :meth:`motion` keeps it only if its values are multiples of it.
     """
 
     kind: Literal["skeleton", "markers"]
@@ -50,6 +52,7 @@ class ClipHeader:
     units: str = "mm"
     decimals: Any = None
     metadata: dict[str, Any] = field(default_factory=dict)
+    quantum: float | None = None
 
     @classmethod
     def of(cls, motion: AnyMotion) -> ClipHeader:
@@ -60,7 +63,8 @@ class ClipHeader:
             return cls("skeleton", motion.n_frames, motion.frame_rate, motion.name, motion.source_format,
                        skeleton=motion.skeleton, decimals=dec, metadata=meta)
         return cls("markers", motion.n_frames, motion.frame_rate, motion.name, motion.source_format,
-                   labels=list(motion.labels), units=motion.units, decimals=motion.decimals, metadata=meta)
+                   labels=list(motion.labels), units=motion.units, decimals=motion.decimals, metadata=meta,
+                   quantum=motion.quantum)
 
     # ------------------------------------------------------------------ columns
     @property
@@ -107,6 +111,11 @@ class ClipHeader:
                           name=self.name, source_format=self.source_format,
                           decimals=None if self.decimals is None else np.array(self.decimals, dtype=np.int64),
                           metadata=dict(self.metadata))
+        q = self.quantum
+        if q is not None:  # decoded values keep the quantum only if they still are its multiples
+            v = np.asarray(values, dtype=np.float64)
+            v = v[np.isfinite(v)]
+            q = q if np.array_equal(np.round(v / q) * q, v) else None
         return MarkerMotion(labels=list(self.labels), positions=values, frame_rate=float(self.frame_rate),
                             units=self.units, name=self.name, source_format=self.source_format,
-                            decimals=self.decimals, metadata=dict(self.metadata))
+                            decimals=self.decimals, metadata=dict(self.metadata), quantum=q)

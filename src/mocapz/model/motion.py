@@ -106,7 +106,11 @@ class MarkerMotion:
         name: clip name.
         source_format: ``"c3d"`` or ``"trc"``.
         decimals: decimals the values were stored with, if known (TRC text), else ``None``.
-        metadata: format-specific extras needed to write the file back (first frame number, analogs...).
+        metadata: format-specific extras needed to write the file back (first frame number; for C3D,
+            ``metadata["c3d"]``, a :class:`~mocapz.model.c3d_extras.C3DExtras`: parameters, analogs,
+            residuals, model outputs...).
+        quantum: the storage step of the positions when they are exact multiples of it (integer C3D:
+            ``|POINT:SCALE|``, units per step), else ``None``.
     """
 
     labels: list[str]
@@ -117,6 +121,7 @@ class MarkerMotion:
     source_format: str = "c3d"
     decimals: int | None = None
     metadata: dict[str, Any] = field(default_factory=dict)
+    quantum: float | None = None
 
     def __post_init__(self) -> None:
         self.positions = np.ascontiguousarray(self.positions, dtype=np.float64)
@@ -152,7 +157,8 @@ class MarkerMotion:
         return ~np.isfinite(self.positions).all(axis=2)
 
     def with_positions(self, positions: np.ndarray) -> MarkerMotion:
-        return replace(self, positions=np.asarray(positions, dtype=np.float64), decimals=None)
+        """Same clip with other positions (decimals and quantum unknown)."""
+        return replace(self, positions=np.asarray(positions, dtype=np.float64), decimals=None, quantum=None)
 
     @property
     def kind(self) -> str:
@@ -169,7 +175,12 @@ class MarkerMotion:
         return self.with_positions(values)
 
     def slice(self, start: int, stop: int | None = None) -> MarkerMotion:
-        return replace(self, positions=self.positions[start:stop].copy())
+        """Frames ``start:stop`` (the C3D extras in ``metadata["c3d"]`` sliced alike)."""
+        meta = self.metadata
+        extras = meta.get("c3d")
+        if extras is not None and hasattr(extras, "slice") and extras.frames == self.n_frames:
+            meta = {**meta, "c3d": extras.slice(start, stop)}
+        return replace(self, positions=self.positions[start:stop].copy(), metadata=meta)
 
 
 UNIT_CM = {"mm": 0.1, "cm": 1.0, "m": 100.0, "dm": 10.0, "in": 2.54, "inch": 2.54}
