@@ -1,45 +1,115 @@
 """Prediction shared by the lossless encoder and decoder (exact integer arithmetic only).
 
-Residual of column ``c`` at frame ``t >= 2``::
+Columns are coded in a fixed order (skeleton channels, or marker x y z). Residual of column ``c`` at
+frame ``t >= 2``::
 
     d2[t, c] = x[t, c] - 2 x[t-1, c] + x[t-2, c]
     r[t, c]  = d2[t, c] - ((sum_k coef[c, k] * d2[t, p_k]) + 512) >> 10
 
-where ``p_k`` are the (at most two) columns of the same group (joint, marker) coded before ``c``.
+where the ``p_k`` are up to :data:`MAX_PREDICTORS` columns coded before ``c`` (any joint or marker among
+the :data:`WINDOW` columns before it), chosen by the encoder (greedy matching pursuit on the second
+differences, kept only while they pay for their coefficients) and listed in the ``coef`` section.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-COEF_SHIFT = 10
-MAX_PREDICTORS = 2
+from mocapz.errors import FormatError
+
+COEF_SHIFT = 8
+COEF_LIMIT = 1 << 20
+MAX_PREDICTORS = 6
+WINDOW = 64  # candidate predictors: the columns coded just before
+FIT_ROWS = 4096  # rows used to choose and fit predictors (evenly spread)
+PREDICTOR_BITS = 24.0  # estimated cost of one predictor (its index and coefficient) in bits
 
 
-def predictor_columns(groups: list[list[int]]) -> list[tuple[int, list[int]]]:
-    """Coding order: ``(column, predictor columns)`` for every column of every group."""
-    order = []
-    for cols in groups:
-        for i, c in enumerate(cols):
-            order.append((c, cols[max(0, i - MAX_PREDICTORS) : i]))
-    return order
+def coding_order(groups: list[list[int]]) -> list[int]:
+    """The columns in coding order (groups in order, columns of a group in order)."""
+    return [c for g in groups for c in g]
 
 
 def cross_term(d2: np.ndarray, preds: list[int], coef: np.ndarray) -> np.ndarray:
     """Integer prediction of one column's second differences from its predictor columns."""
     if not preds:
         return np.zeros(d2.shape[0], dtype=np.int64)
-    acc = d2[:, preds] @ coef.astype(np.int64)
+    acc = d2[:, preds] @ np.asarray(coef, dtype=np.int64)
     return (acc + (1 << (COEF_SHIFT - 1))) >> COEF_SHIFT
 
 
-def fit_coef(d2: np.ndarray, col: int, preds: list[int]) -> np.ndarray:
-    """Least-squares predictor coefficients, rounded to the fixed-point grid (kept only if they help)."""
-    if not preds or d2.shape[0] < 4:
-        return np.zeros(len(preds), dtype=np.int64)
-    a = d2[:, preds].astype(np.float64)
-    y = d2[:, col].astype(np.float64)
-    sol, *_ = np.linalg.lstsq(a, y, rcond=None)
-    coef = np.clip(np.round(sol * (1 << COEF_SHIFT)), -(1 << 20), 1 << 20).astype(np.int64)
-    gain = np.abs(y).sum() - np.abs(y - cross_term(d2, preds, coef)).sum()
-    return coef if gain > 0 else np.zeros(len(preds), dtype=np.int64)
+def _cost(r: np.ndarray) -> float:
+    """Estimated bits of residuals ``r`` (Laplace: ``n * log2(mean |r| + 1)``)."""
+    return float(r.size * np.log2(np.abs(r).mean() + 1.0)) if r.size else 0.0
+
+
+def choose_predictors(d2: np.ndarray, col: int, before: list[int], rows: np.ndarray) -> tuple[list[int], np.ndarray]:
+    """Predictor columns and fixed-point coefficients for ``col``.
+
+    Args:
+        d2: ``(frames - 2, columns)`` int64 second differences, final for the columns in ``before``.
+        col: the column to predict.
+        before: the columns coded before it (candidates: the last :data:`WINDOW`).
+        rows: indices of the rows where ``col`` is observed (the fit uses at most :data:`FIT_ROWS` of them).
+    """
+    cand = before[-WINDOW:]
+    if not cand or rows.size < 8:
+        return [], np.zeros(0, dtype=np.int64)
+    if rows.size > FIT_ROWS:
+        rows = rows[np.linspace(0, rows.size - 1, FIT_ROWS).astype(np.int64)]
+    y = d2[rows, col].astype(np.float64)
+    a = d2[np.ix_(rows, cand)].astype(np.float64)
+    norms = np.sqrt((a * a).sum(axis=0)) + 1e-9
+    best: tuple[float, list[int], np.ndarray] = (_cost(y), [], np.zeros(0, dtype=np.int64))
+    chosen: list[int] = []
+    resid = y
+    for _ in range(min(MAX_PREDICTORS, len(cand))):
+        score = np.abs(a.T @ resid) / norms
+        score[chosen] = -1.0
+        j = int(np.argmax(score))
+        if score[j] <= 0:
+            break
+        chosen.append(j)
+        sol, *_ = np.linalg.lstsq(a[:, chosen], y, rcond=None)
+        resid = y - a[:, chosen] @ sol
+        coef = np.clip(np.round(sol * (1 << COEF_SHIFT)), -COEF_LIMIT, COEF_LIMIT).astype(np.int64)
+        preds = [cand[i] for i in chosen]
+        r = d2[rows, col] - cross_term(d2[rows], preds, coef)
+        cost = _cost(r.astype(np.float64)) + PREDICTOR_BITS * len(preds)
+        if cost < best[0]:
+            best = (cost, preds, coef)
+    return best[1], best[2]
+
+
+def pack_predictors(order: list[int], table: list[tuple[list[int], np.ndarray]]) -> np.ndarray:
+    """The ``coef`` section's integers: per column in order, the predictor count, each predictor as its
+    distance back in the coding order, then the coefficients."""
+    where = {c: i for i, c in enumerate(order)}
+    out: list[int] = []
+    for i, (preds, coef) in enumerate(table):
+        out.append(len(preds))
+        out.extend(i - where[p] for p in preds)
+        out.extend(int(v) for v in coef)
+    return np.asarray(out, dtype=np.int64)
+
+
+def unpack_predictors(order: list[int], values: np.ndarray) -> list[tuple[list[int], np.ndarray]]:
+    """Inverse of :func:`pack_predictors` (every count and distance checked)."""
+    table: list[tuple[list[int], np.ndarray]] = []
+    vals = values.tolist()
+    pos = 0
+    for i in range(len(order)):
+        if pos >= len(vals) or not 0 <= vals[pos] <= MAX_PREDICTORS:
+            raise FormatError(None, "corrupted lossless stream (predictor table)")
+        n = vals[pos]
+        back = vals[pos + 1 : pos + 1 + n]
+        coef = vals[pos + 1 + n : pos + 1 + 2 * n]
+        pos += 1 + 2 * n
+        if len(coef) != n or any(not 1 <= b <= min(i, WINDOW) for b in back):
+            raise FormatError(None, "corrupted lossless stream (predictor table)")
+        if any(abs(v) > COEF_LIMIT for v in coef):
+            raise FormatError(None, "corrupted lossless stream (predictor coefficient)")
+        table.append(([order[i - b] for b in back], np.asarray(coef, dtype=np.int64)))
+    if pos != len(vals):
+        raise FormatError(None, "corrupted lossless stream (predictor table length)")
+    return table
