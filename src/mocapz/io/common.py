@@ -54,17 +54,17 @@ def common_decimals(values: np.ndarray, max_decimals: int = 9, exceptions: bool 
         values = values[:, None]
     rows, cols = values.shape
     budget = exception_budget(rows) if exceptions else 0
-    out = np.zeros(cols, dtype=np.int64)
-    pending = np.isfinite(values)  # values not yet fitting a decimal count
-    for d in range(max_decimals + 1):
-        hit = pending & fits_decimals(values, np.full(cols, d))
-        out[hit.any(axis=0)] = d
-        pending &= ~hit
-        if not pending.any():
-            break
-    if (pending.sum(axis=0) > budget).any():
+    slack = rows // 100 if exceptions else 0  # values with a few more decimals than the rest: exceptions too
+    finite = np.isfinite(values)
+    fit = np.stack([fits_decimals(values, np.full(cols, d)) for d in range(max_decimals + 1)])
+    never = finite & ~fit.any(axis=0)
+    if (never.sum(axis=0) > budget).any():
         return None
-    return out
+    misses = (finite & ~never)[None] & ~fit  # (decimals, rows, cols): fittable values off each count
+    ok = misses.sum(axis=1) <= slack  # (decimals, cols)
+    if not ok.any(axis=0).all():
+        return None
+    return np.argmax(ok, axis=0).astype(np.int64)
 
 
 def exact_text_mask(values: np.ndarray, decimals: np.ndarray) -> np.ndarray:
