@@ -179,3 +179,40 @@ def test_lossy_values_are_still_rounded(tmp_path: Path) -> None:
     assert "e-" not in text and "-0.0000 " not in text
     error = np.abs(read_bvh(tmp_path / "n.bvh").channels - noisy.channels)
     assert (error <= 0.5 * 10.0 ** -m.decimals.astype(float) + 1e-9).all()
+
+
+# ---------------------------------------------------------------------------------- representations
+def test_integer_c3d_codes_the_integers() -> None:
+    """Values stored as integers times a scale (integer C3D) are coded as those integers when the motion says
+    its quantum; an odd value among them is an exception, and -0 keeps its sign."""
+    from mocapz.codecs.lossless.integers import REP_QUANTUM
+    from mocapz.format.container import Container
+
+    scale = float(np.float32(0.0833333358168602))
+    rng = np.random.default_rng(4)
+    ints = np.cumsum(np.cumsum(rng.integers(-3, 4, size=(300, 6, 3)), axis=0), axis=0) + 3000
+    pos = ints.astype(np.float64) * scale
+    pos[10:20, 2] = np.nan
+    pos[50, 1, 0] = -0.0
+    pos[60, 3, 2] += 1e-9  # not a multiple of the scale
+    m = MarkerMotion([f"M{i}" for i in range(6)], pos, 60.0, "mm", "eb", "c3d")
+    plain = mocapz.compress(m, codec="lossless")
+    m.quantum = scale  # what the C3D reader reports for integer storage (MarkerMotion.quantum)
+    data = mocapz.compress(m, codec="lossless")
+    box = Container.from_bytes(data)
+    assert box.sections["rep"][0] == REP_QUANTUM and "exc" in box.sections and "negz" in box.sections
+    assert_bit_exact(m, mocapz.decompress(data))
+    assert len(data) < 0.7 * len(plain)
+
+
+def test_exceptions_cost_little() -> None:
+    """One float artefact and a few -0 add a few bytes, not a representation change."""
+    m = _load("cmu/bvh/09_06.bvh")
+    ch = m.channels.copy()
+    ch[70, 20] -= 1e-14  # like -0.0071 -> -0.00709999999999
+    plus_zeros = np.argwhere((ch == 0) & ~np.signbit(ch))
+    ch[tuple(plus_zeros[::50].T)] = -0.0
+    odd = m.with_channels(ch, m.decimals)
+    data = mocapz.compress(odd, codec="lossless")
+    assert_bit_exact(odd, mocapz.decompress(data))
+    assert len(data) <= len(_packed("cmu/bvh/09_06.bvh")) + 20 + 3 * len(plus_zeros[::50])

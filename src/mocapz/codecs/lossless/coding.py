@@ -186,19 +186,48 @@ def decode_residuals(data: bytes, mask: np.ndarray) -> np.ndarray:
     return out
 
 
+def pack_small(values: np.ndarray) -> bytes:
+    """Non-negative integers: byte ``0`` + a byte-plane stream, or byte ``1`` + plain uvarints (short lists,
+    where a zstd frame's overhead would dominate), whichever is smaller."""
+    u = np.asarray(values, dtype=np.uint64)
+    planes = b"\0" + pack_uint64(u)
+    if u.size > 64:
+        return planes
+    plain = b"\1" + write_uvarint(u.size) + b"".join(write_uvarint(int(v)) for v in u.tolist())
+    return plain if len(plain) < len(planes) else planes
+
+
+def unpack_small(data: bytes, count: int | None = None, at_most: int = 1 << 31) -> np.ndarray:
+    """Inverse of :func:`pack_small` (``count``: the number expected, if known)."""
+    if not data or data[0] > 1:
+        raise FormatError(None, "corrupted integer list")
+    if data[0] == 0:
+        return unpack_uint64(data[1:], count, at_most=at_most)
+    n, pos = read_uvarint(data, 1)
+    if (count is not None and n != count) or n > min(at_most, len(data)):
+        raise FormatError(None, "corrupted integer list (count)")
+    out = []
+    for _ in range(n):
+        v, pos = read_uvarint(data, pos)
+        out.append(v)
+    if pos != len(data):
+        raise FormatError(None, "corrupted integer list (length)")
+    return np.asarray(out, dtype=np.uint64)
+
+
 def encode_indices(idx: np.ndarray) -> bytes:
-    """Sorted distinct non-negative positions: a format byte, then zstd-packed gaps (0) or runs (1: gap before
-    each run, run length - 1), whichever is smaller."""
+    """Sorted distinct non-negative positions: a format byte, then (:func:`pack_small`) the gaps (0:
+    ``p[i] - p[i-1] - 1``) or the runs (1: gap before each run, run length - 1), whichever is smaller."""
     idx = np.asarray(idx, dtype=np.int64)
     gaps = np.diff(idx, prepend=-1) - 1
-    plain = b"\0" + pack_uint64(gaps.astype(np.uint64))
+    plain = b"\0" + pack_small(gaps.astype(np.uint64))
     if not idx.size:
         return plain
     breaks = np.flatnonzero(np.diff(idx) != 1) + 1
     starts = idx[np.concatenate([[0], breaks])]
     ends = idx[np.concatenate([breaks - 1, [idx.size - 1]])]
     run_gaps = starts - np.concatenate([[-1], ends[:-1]]) - 1
-    runs = b"\1" + pack_uint64(np.stack([run_gaps, ends - starts], axis=1).ravel().astype(np.uint64))
+    runs = b"\1" + pack_small(np.stack([run_gaps, ends - starts], axis=1).ravel().astype(np.uint64))
     return runs if len(runs) < len(plain) else plain
 
 
@@ -206,7 +235,7 @@ def decode_indices(data: bytes, limit: int) -> np.ndarray:
     """Inverse of :func:`encode_indices`; every position must be under ``limit``."""
     if not data or data[0] > 1:
         raise FormatError(None, "corrupted index list")
-    values = unpack_uint64(data[1:], at_most=2 * limit)
+    values = unpack_small(data[1:], at_most=2 * limit)
     if values.size and int(values.max()) >= limit:
         raise FormatError(None, "corrupted index list")
     if data[0] == 0:

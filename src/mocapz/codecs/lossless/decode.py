@@ -8,7 +8,7 @@ from typing import Any
 import numpy as np
 
 from mocapz.codecs.gaps import unpack_mask
-from mocapz.codecs.lossless.coding import decode_indices, decode_residuals, residual_shape
+from mocapz.codecs.lossless.coding import decode_indices, decode_residuals, residual_shape, unpack_small
 from mocapz.codecs.lossless.integers import (
     REP_DECIMAL,
     REP_F32_DECIMAL,
@@ -20,7 +20,7 @@ from mocapz.codecs.lossless.integers import (
 )
 from mocapz.codecs.lossless.predict import MAX_PREDICTORS, coding_order, cross_term, unpack_predictors
 from mocapz.errors import FormatError
-from mocapz.format.entropy import unpack_uint64, unzigzag
+from mocapz.format.entropy import read_uvarint, unpack_uint64, unzigzag
 from mocapz.model.header import ClipHeader
 
 
@@ -84,13 +84,11 @@ def _read_exceptions(sections: dict[str, bytes], form: IntegerForm, decimals: np
         form.negzero = row_major(decode_indices(sections["negz"], size))
     if "exc" in sections:
         data = sections["exc"]
-        if len(data) < 4:
-            raise FormatError(None, "corrupted lossless stream (exceptions)")
-        (n,) = struct.unpack("<I", data[:4])
-        if 4 + n > len(data):
+        n, pos = read_uvarint(data, 0)
+        if pos + n > len(data):
             raise FormatError(None, "truncated lossless stream (exceptions)")
-        idx = row_major(decode_indices(data[4 : 4 + n], size))
-        xor = unpack_uint64(data[4 + n :], idx.size)
+        idx = row_major(decode_indices(data[pos : pos + n], size))
+        xor = unpack_small(data[pos + n :], idx.size)
         placeholder = from_ints(form.rep, form.ints, decimals, form.quantum).ravel()[idx]
         form.exceptions = idx
         form.exact = (placeholder.view(np.uint64) ^ xor).view(np.float64)

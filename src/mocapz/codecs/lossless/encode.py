@@ -14,10 +14,10 @@ import struct
 import numpy as np
 
 from mocapz.codecs.gaps import pack_mask
-from mocapz.codecs.lossless.coding import encode_indices, encode_residuals
+from mocapz.codecs.lossless.coding import encode_indices, encode_residuals, pack_small
 from mocapz.codecs.lossless.integers import REP_QUANTUM, IntegerForm, choose_form, from_ints
 from mocapz.codecs.lossless.predict import choose_predictors, coding_order, cross_term, pack_predictors
-from mocapz.format.entropy import pack_uint64, zigzag
+from mocapz.format.entropy import pack_uint64, write_uvarint, zigzag
 from mocapz.model.motion import AnyMotion, Motion
 
 
@@ -66,7 +66,8 @@ def encode(motion: AnyMotion, **options: object) -> dict[str, bytes]:
 
 
 def _value_sections(form: IntegerForm, decimals: np.ndarray | None) -> dict[str, bytes]:
-    """``exc`` (count, positions, then the XOR of each exact value's bits with its placeholder's) and ``negz``.
+    """``exc`` (uvarint size of the position list, the positions, then the XOR of each exact value's bits with
+    its placeholder's) and ``negz``.
 
     Positions are column-major (``column * frames + frame``), where the odd values of one channel cluster."""
     frames, cols = form.ints.shape
@@ -78,7 +79,7 @@ def _value_sections(form: IntegerForm, decimals: np.ndarray | None) -> dict[str,
         placeholder = from_ints(form.rep, form.ints, decimals, form.quantum).ravel()[idx]
         xor = placeholder.view(np.uint64) ^ form.exact[order].view(np.uint64)
         pos = encode_indices(np.sort(c * frames + t))
-        out["exc"] = struct.pack("<I", len(pos)) + pos + pack_uint64(xor)
+        out["exc"] = write_uvarint(len(pos)) + pos + pack_small(xor)
     if form.negzero.size:
         t, c = np.divmod(form.negzero, cols)
         out["negz"] = encode_indices(np.sort(c * frames + t))
