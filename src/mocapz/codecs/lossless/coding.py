@@ -66,7 +66,9 @@ def _split_low(values: np.ndarray, k: np.ndarray) -> tuple[np.ndarray, np.ndarra
 
 
 def _pack_low(low: np.ndarray, k: np.ndarray) -> bytes:
-    """``k[i]`` low bits of each ``low[i]`` (uint64), packed."""
+    """``k[i]`` low bits of each ``low[i]`` (uint64), least significant first, packed."""
+    some = k > 0
+    low, k = low[some], k[some]
     kmax = int(k.max(initial=0))
     if kmax == 0:
         return b""

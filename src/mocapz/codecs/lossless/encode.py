@@ -137,6 +137,6 @@ def _fill_gaps(col: np.ndarray, missing: np.ndarray, cross: np.ndarray) -> None:
     """Set ``col[t + 2]`` for every missing ``t`` so that its second difference is ``cross[t]`` (in place)."""
     v = col.tolist()
     cr = cross.tolist()
-    for t in np.flatnonzero(missing).tolist():
-        v[t + 2] = 2 * v[t + 1] - v[t] + cr[t]
+    for t in np.flatnonzero(missing).tolist():  # wrapping int64 arithmetic, as the decoder's numpy sums
+        v[t + 2] = ((2 * v[t + 1] - v[t] + cr[t] + (1 << 63)) & ((1 << 64) - 1)) - (1 << 63)
     col[:] = np.asarray(v, dtype=np.int64)

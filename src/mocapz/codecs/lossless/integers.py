@@ -200,8 +200,11 @@ def choose_form(values: np.ndarray, decimals: np.ndarray | None, quantum: float 
     best: IntegerForm | None = None
     best_bits = np.inf
     for rep, q in candidates(values, decimals, quantum):
-        if rep == REP_FLOAT64 and best is not None and best.exceptions.size * 4 < values.size:
+        if best is not None and rep == REP_FLOAT64 and best.exceptions.size * 4 < values.size:
             break  # float64 bit patterns only when nothing else fits most values
+        if best is not None and best.rep == REP_DECIMAL and not best.exceptions.size and rep != REP_F32_DECIMAL \
+                and decimals is not None and int(np.max(decimals, initial=0)) <= 5:
+            break  # text with few decimals, all fitting: the float forms cannot do better
         form = integer_form(rep, values, decimals, q)
         bits = estimated_bits(form)
         if bits < best_bits:
