@@ -216,3 +216,32 @@ def test_exceptions_cost_little() -> None:
     data = mocapz.compress(odd, codec="lossless")
     assert_bit_exact(odd, mocapz.decompress(data))
     assert len(data) <= len(_packed("cmu/bvh/09_06.bvh")) + 20 + 3 * len(plus_zeros[::50])
+
+
+def test_float_c3d_from_integers_codes_the_integers() -> None:
+    """float32 values written from integers times a scale (C3D REAL storage) are coded as those integers; the
+    scale is found in the data."""
+    from mocapz.codecs.lossless.integers import REP_F32_QUANTUM
+    from mocapz.format.container import Container
+
+    scale = float(np.float32(0.0833333358168602))
+    rng = np.random.default_rng(5)
+    ints = np.cumsum(np.cumsum(rng.integers(-3, 4, size=(300, 6, 3)), axis=0), axis=0) + 9000
+    pos = (ints.astype(np.float64) * scale).astype(np.float32).astype(np.float64)
+    pos[7, 2, 1] = np.float32(pos[7, 2, 1] + 0.01)  # a float32 off the grid: an exception
+    m = MarkerMotion([f"M{i}" for i in range(6)], pos, 60.0, "mm", "eb", "c3d")
+    data = mocapz.compress(m, codec="lossless")
+    box = Container.from_bytes(data)
+    assert box.sections["rep"][0] == REP_F32_QUANTUM and "exc" in box.sections
+    assert_bit_exact(m, mocapz.decompress(data))
+
+
+def test_per_column_precision() -> None:
+    """%g text (AMC): each column gets its own representation; tiny values are exceptions."""
+    from mocapz.codecs.lossless.integers import REP_COLUMNS
+    from mocapz.format.container import Container
+
+    m = _load("other/asfamc/amcparser/walking.amc")
+    data = _packed("other/asfamc/amcparser/walking.amc")
+    assert Container.from_bytes(data).sections["rep"][0] == REP_COLUMNS
+    assert m.raw_bytes / len(data) > 1.9  # 1.51 with one representation for the clip

@@ -9,14 +9,16 @@ import numpy as np
 
 from mocapz.codecs.gaps import unpack_mask
 from mocapz.codecs.lossless.coding import decode_indices, decode_residuals, residual_shape, unpack_small
+from mocapz.codecs.lossless.columns import unpack_columns
 from mocapz.codecs.lossless.integers import (
+    QUANTUM_REPS,
+    REP_COLUMNS,
     REP_DECIMAL,
     REP_F32_DECIMAL,
-    REP_QUANTUM,
     REPRESENTATIONS,
     IntegerForm,
     apply_exceptions,
-    from_ints,
+    form_values,
 )
 from mocapz.codecs.lossless.predict import MAX_PREDICTORS, coding_order, cross_term, unpack_predictors
 from mocapz.errors import FormatError
@@ -39,6 +41,7 @@ def decode(sections: dict[str, bytes], header: ClipHeader) -> Any:
     cols, groups = _groups(header)
     try:
         rep, quantum = _rep(sections["rep"])
+        columns = unpack_columns(sections["rep"], cols) if rep == REP_COLUMNS else None
         gaps = unpack_mask(sections["gaps"], (frames, cols)) if "gaps" in sections else None
         x = _decode_ints(sections, frames, cols, groups, gaps)
     except KeyError as exc:
@@ -48,7 +51,7 @@ def decode(sections: dict[str, bytes], header: ClipHeader) -> Any:
         if header.decimals is None:
             raise FormatError(None, "corrupted lossless stream (decimals missing)")
         decimals = np.broadcast_to(np.asarray(header.decimals, dtype=np.int64), (cols,))
-    form = IntegerForm(rep, x, np.zeros(0, dtype=np.int64), np.zeros(0), np.zeros(0, dtype=np.int64), quantum)
+    form = IntegerForm(rep, x, np.zeros(0, dtype=np.int64), np.zeros(0), np.zeros(0, dtype=np.int64), quantum, columns)
     _read_exceptions(sections, form, decimals)
     values = apply_exceptions(form, decimals)
     if gaps is not None:
@@ -59,7 +62,9 @@ def decode(sections: dict[str, bytes], header: ClipHeader) -> Any:
 def _rep(data: bytes) -> tuple[int, float]:
     if len(data) < 1 or data[0] not in REPRESENTATIONS:
         raise FormatError(None, f"corrupted lossless stream (representation {data[:8].hex() or 'missing'})")
-    if data[0] != REP_QUANTUM:
+    if data[0] == REP_COLUMNS:
+        return data[0], 0.0
+    if data[0] not in QUANTUM_REPS:
         if len(data) != 1:
             raise FormatError(None, "corrupted lossless stream (representation)")
         return data[0], 0.0
@@ -89,7 +94,7 @@ def _read_exceptions(sections: dict[str, bytes], form: IntegerForm, decimals: np
             raise FormatError(None, "truncated lossless stream (exceptions)")
         idx = row_major(decode_indices(data[pos : pos + n], size))
         xor = unpack_small(data[pos + n :], idx.size)
-        placeholder = from_ints(form.rep, form.ints, decimals, form.quantum).ravel()[idx]
+        placeholder = form_values(form, decimals).ravel()[idx]
         form.exceptions = idx
         form.exact = (placeholder.view(np.uint64) ^ xor).view(np.float64)
 

@@ -1,6 +1,7 @@
 """Lossless encoder.
 
-Sections: ``rep`` (the representation byte, and the quantum as float64 for ``REP_QUANTUM``), ``gaps``
+Sections: ``rep`` (the representation byte; the quantum as float64 for the quantum forms; per-column
+representations and decimals for ``REP_COLUMNS``, :mod:`.columns`), ``gaps``
 (marker clips with missing samples: packed mask), ``const`` (columns whose observed values never change),
 ``head`` (first frame, and first differences of the other columns), ``coef`` (cross-channel predictor
 coefficients), ``res`` (prediction residuals of the observed samples, :mod:`.coding`), ``exc`` and
@@ -15,7 +16,16 @@ import numpy as np
 
 from mocapz.codecs.gaps import pack_mask
 from mocapz.codecs.lossless.coding import encode_indices, encode_residuals, pack_small
-from mocapz.codecs.lossless.integers import REP_QUANTUM, IntegerForm, choose_form, from_ints
+from mocapz.codecs.lossless.columns import column_form, pack_columns
+from mocapz.codecs.lossless.integers import (
+    QUANTUM_REPS,
+    REP_COLUMNS,
+    REP_DECIMAL,
+    IntegerForm,
+    choose_form,
+    estimated_bits,
+    form_values,
+)
 from mocapz.codecs.lossless.predict import choose_predictors, coding_order, cross_term, pack_predictors
 from mocapz.format.entropy import pack_uint64, write_uvarint, zigzag
 from mocapz.model.motion import AnyMotion, Motion
@@ -55,9 +65,16 @@ def encode(motion: AnyMotion, **options: object) -> dict[str, bytes]:
     values, gaps = value_matrix(motion)
     decimals = motion_decimals(motion, values.shape[1])
     form = choose_form(values, decimals, getattr(motion, "quantum", None))
+    fits = form.rep in (REP_DECIMAL, *QUANTUM_REPS) and form.exceptions.size * 1000 <= values.size
+    if not fits and values.shape[0] > 2 and values.shape[1]:
+        by_column, bits = column_form(values)
+        if bits < 0.97 * estimated_bits(form):  # the estimates are rough: only a clear gain
+            form = by_column
     sections: dict[str, bytes] = {"rep": bytes([form.rep])}
-    if form.rep == REP_QUANTUM:
+    if form.rep in QUANTUM_REPS:
         sections["rep"] += struct.pack("<d", form.quantum)
+    elif form.rep == REP_COLUMNS:
+        sections["rep"] = pack_columns(form)
     if gaps is not None:
         sections["gaps"] = pack_mask(gaps)
     sections.update(_value_sections(form, decimals))
@@ -76,7 +93,7 @@ def _value_sections(form: IntegerForm, decimals: np.ndarray | None) -> dict[str,
         t, c = np.divmod(form.exceptions, cols)
         order = np.argsort(c * frames + t, kind="stable")
         idx = form.exceptions[order]
-        placeholder = from_ints(form.rep, form.ints, decimals, form.quantum).ravel()[idx]
+        placeholder = form_values(form, decimals).ravel()[idx]
         xor = placeholder.view(np.uint64) ^ form.exact[order].view(np.uint64)
         pos = encode_indices(np.sort(c * frames + t))
         out["exc"] = write_uvarint(len(pos)) + pos + pack_small(xor)

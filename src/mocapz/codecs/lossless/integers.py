@@ -9,6 +9,8 @@ A clip's ``(frames, columns)`` float64 values become int64 in one representation
   decimals (``%.5f`` of a float32: TRC exports); the decoder rounds the float32 back to ``d`` decimals;
 * ``short decimal``: the float32 integers for text written with few significant digits (``%g``: AMC);
   the decoder turns each float32 into its shortest decimal and reads that as float64;
+* ``float32 quantum``: ``round(value / q)`` for float32 values that are multiples of a scale ``q`` rounded to
+  float32 (float C3D written from integers: ``float32(i * q)``); ``q`` is found in the data;
 * ``float64``: the float64 bit patterns (anything else).
 
 Whatever the representation, a value it does not give back bit for bit is an **exception**: its
@@ -23,8 +25,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-REP_DECIMAL, REP_FLOAT32, REP_FLOAT64, REP_SHORT_DECIMAL, REP_QUANTUM, REP_F32_DECIMAL = 0, 1, 2, 3, 4, 5
-REPRESENTATIONS = (REP_DECIMAL, REP_FLOAT32, REP_FLOAT64, REP_SHORT_DECIMAL, REP_QUANTUM, REP_F32_DECIMAL)
+REP_DECIMAL, REP_FLOAT32, REP_FLOAT64, REP_SHORT_DECIMAL, REP_QUANTUM, REP_F32_DECIMAL, REP_F32_QUANTUM = range(7)
+REP_COLUMNS = 7  # one representation per column (:mod:`.columns`)
+REPRESENTATIONS = tuple(range(8))
+QUANTUM_REPS = (REP_QUANTUM, REP_F32_QUANTUM)
 _POW10 = 10.0 ** np.arange(-22, 23)  # exact doubles for |e| <= 22
 _SIGN = np.int64(-0x8000000000000000)
 _INT_LIMIT = 2.0**62  # placeholders stay far from int64 overflow in the second differences
@@ -40,7 +44,8 @@ class IntegerForm:
         exceptions: flat (row-major) indices of the values the integers do not give back, sorted.
         exact: ``(len(exceptions),)`` float64, those values.
         negzero: flat indices of the ``-0`` values the integers give back as ``+0``, sorted.
-        quantum: the scale of ``REP_QUANTUM`` (file units per integer step), else 0.
+        quantum: the scale of ``REP_QUANTUM`` and ``REP_F32_QUANTUM`` (file units per integer step), else 0.
+        columns: for ``REP_COLUMNS``, each column's representation and decimals ``(columns,)`` int64 each.
     """
 
     rep: int
@@ -49,6 +54,7 @@ class IntegerForm:
     exact: np.ndarray
     negzero: np.ndarray
     quantum: float = 0.0
+    columns: tuple[np.ndarray, np.ndarray] | None = None
 
 
 def shortest_decimal(f32: np.ndarray) -> np.ndarray:
@@ -117,7 +123,7 @@ def to_ints(rep: int, values: np.ndarray, decimals: np.ndarray | None = None, qu
     cols = values.shape[1] if values.ndim == 2 else 1
     if rep == REP_DECIMAL:
         return _round_ints(values * _column_scale(decimals, cols))
-    if rep == REP_QUANTUM:
+    if rep in QUANTUM_REPS:
         return _round_ints(values / quantum)
     if rep in (REP_FLOAT32, REP_SHORT_DECIMAL, REP_F32_DECIMAL):
         return _f32_ints(values)
@@ -137,6 +143,8 @@ def _from_ints(rep: int, ints: np.ndarray, decimals: np.ndarray | None, quantum:
         return ints / _column_scale(decimals, cols)
     if rep == REP_QUANTUM:
         return ints.astype(np.float64) * np.float64(quantum)
+    if rep == REP_F32_QUANTUM:
+        return (ints.astype(np.float64) * np.float64(quantum)).astype(np.float32).astype(np.float64)
     if rep == REP_FLOAT32:
         return _f32_of(ints).astype(np.float64)
     if rep == REP_SHORT_DECIMAL:
@@ -155,17 +163,40 @@ def integer_form(rep: int, values: np.ndarray, decimals: np.ndarray | None = Non
                  quantum: float = 0.0) -> IntegerForm:
     """``values`` (finite, ``(frames, columns)``) in representation ``rep``, with its exceptions and signs."""
     ints = to_ints(rep, values, decimals, quantum)
-    back = from_ints(rep, ints, decimals, quantum)
+    return with_exceptions(IntegerForm(rep, ints, _NONE, np.zeros(0), _NONE, quantum), values, decimals)
+
+
+_NONE = np.zeros(0, dtype=np.int64)
+
+
+def with_exceptions(form: IntegerForm, values: np.ndarray, decimals: np.ndarray | None = None) -> IntegerForm:
+    """``form`` with the exceptions and negative zeros that make it give back ``values`` exactly."""
+    back = form_values(form, decimals)
     got, want = back.view(np.int64).ravel(), values.view(np.int64).ravel()
     wrong = got != want
     negzero = wrong & (want == _SIGN) & (got == 0)
     exc = np.flatnonzero(wrong & ~negzero)
-    return IntegerForm(rep, ints, exc, values.ravel()[exc].copy(), np.flatnonzero(negzero), quantum)
+    form.exceptions, form.exact, form.negzero = exc, values.ravel()[exc].copy(), np.flatnonzero(negzero)
+    return form
+
+
+def form_values(form: IntegerForm, decimals: np.ndarray | None = None) -> np.ndarray:
+    """The values the integers of ``form`` give (exceptions and signs not applied)."""
+    if form.rep != REP_COLUMNS:
+        return from_ints(form.rep, form.ints, decimals, form.quantum)
+    if form.columns is None:
+        raise ValueError("per-column representations missing")
+    reps, decs = form.columns
+    out = np.empty(form.ints.shape)
+    for rep in np.unique(reps).tolist():
+        cols = np.flatnonzero(reps == rep)
+        out[:, cols] = from_ints(rep, form.ints[:, cols], decs[cols], form.quantum)
+    return out
 
 
 def apply_exceptions(form: IntegerForm, decimals: np.ndarray | None = None) -> np.ndarray:
     """The exact ``(frames, columns)`` values of an integer form (inverse of :func:`integer_form`)."""
-    values = from_ints(form.rep, form.ints, decimals, form.quantum)
+    values = form_values(form, decimals)
     flat = values.reshape(-1)
     flat[form.negzero] = -0.0
     flat[form.exceptions] = form.exact
@@ -179,8 +210,48 @@ def candidates(values: np.ndarray, decimals: np.ndarray | None, quantum: float |
         reps.append((REP_QUANTUM, float(quantum)))
     if decimals is not None:
         reps += [(REP_DECIMAL, 0.0), (REP_F32_DECIMAL, 0.0)]
+    if not reps and values.size:
+        found = float32_quantum(values)
+        if found:
+            reps.append((REP_F32_QUANTUM, found))
     reps += [(REP_FLOAT32, 0.0), (REP_SHORT_DECIMAL, 0.0), (REP_FLOAT64, 0.0)]
     return reps
+
+
+def float32_quantum(values: np.ndarray) -> float:
+    """The scale ``q`` (file units) if most values are ``float32(n * q)`` for integers ``n``, else 0.
+
+    ``q`` is first guessed as a low percentile of the nonzero steps between frames, then refined by least
+    squares on ``n = round(value / q)``, first on small values (where ``n`` cannot be wrong); the candidate
+    (or its float32 rounding) is kept if it gives back at least 90 % of the values exactly.
+    """
+    v = values[np.isfinite(values)]
+    if v.size < 16 or not np.array_equal(v.astype(np.float32).astype(np.float64), v):
+        return 0.0
+    steps = np.abs(np.diff(values, axis=0)).ravel()
+    steps = steps[np.isfinite(steps) & (steps > 0)]
+    if steps.size < 16:
+        return 0.0
+    guess = float(np.percentile(steps, 1))
+    if not guess > 0 or np.abs(v).max() / guess > 2.0**30:
+        return 0.0
+    q = guess
+    for rel in (2e-3, 2e-6, 0.0):  # refine on values small enough for round(v / q) to be right
+        small = v[np.abs(v) <= 0.2 * q / rel] if rel else v
+        n = np.round(small / q)
+        nn = float(np.dot(n, n))
+        if nn == 0:
+            return 0.0
+        q = float(np.dot(n, small)) / nn
+    best, share = 0.0, 0.9
+    for cand in (q, float(np.float32(q))):
+        if not cand > 0:
+            continue
+        back = (np.round(v / cand) * cand).astype(np.float32).astype(np.float64)
+        hit = float(np.mean(back == v))
+        if hit >= share:
+            best, share = cand, hit
+    return best
 
 
 def estimated_bits(form: IntegerForm) -> float:
