@@ -20,7 +20,7 @@ from mocapz.codecs.lossless.integers import (
     apply_exceptions,
     form_values,
 )
-from mocapz.codecs.lossless.predict import MAX_PREDICTORS, coding_order, cross_term, unpack_predictors
+from mocapz.codecs.lossless.predict import coding_order, cross_term, unpack_predictors
 from mocapz.errors import FormatError
 from mocapz.format.entropy import read_uvarint, unpack_uint64, unzigzag
 from mocapz.model.header import ClipHeader
@@ -117,8 +117,7 @@ def _decode_ints(sections: dict[str, bytes], frames: int, cols: int, groups: lis
                                     f"expected)")
         observed = np.ones((frames - 2, len(order)), dtype=bool) if gaps is None else ~gaps[2:, order]
         residual = decode_residuals(sections["res"], observed)
-        packed = unpack_uint64(sections["coef"], at_most=(1 + 2 * MAX_PREDICTORS) * len(order))
-        table = unpack_predictors(order, unzigzag(packed))
+        table = unpack_predictors(order, sections["coef"])
         d2 = np.zeros((frames - 2, cols), dtype=np.int64)
         for k, (c, (preds, coef)) in enumerate(zip(order, table, strict=True)):
             d2[:, c] = residual[:, k] + cross_term(d2, preds, coef)

@@ -145,7 +145,7 @@ def _integer_sections(x: np.ndarray, gaps: np.ndarray | None, groups: list[list[
             _fill_gaps(x[:, c], ~coded[:, k], cross)
             d2[:, c] = x[2:, c] - 2 * x[1:-1, c] + x[:-2, c]
         residual[:, k] = np.where(coded[:, k], d2[:, c] - cross, 0)
-    out["coef"] = pack_uint64(zigzag(pack_predictors(order, table)))
+    out["coef"] = pack_predictors(order, table)
     out["res"] = encode_residuals(residual, coded)
     return out
 

@@ -120,6 +120,11 @@ def _column_scale(decimals: np.ndarray | None, cols: int) -> np.ndarray:
 def to_ints(rep: int, values: np.ndarray, decimals: np.ndarray | None = None, quantum: float = 0.0) -> np.ndarray:
     """The ``(frames, columns)`` integers of finite ``values`` in representation ``rep`` (placeholders where a
     value does not fit: the nearest integer of the representation)."""
+    with np.errstate(all="ignore"):  # huge values overflow to placeholders (they are exceptions): no warnings
+        return _to_ints(rep, values, decimals, quantum)
+
+
+def _to_ints(rep: int, values: np.ndarray, decimals: np.ndarray | None, quantum: float) -> np.ndarray:
     cols = values.shape[1] if values.ndim == 2 else 1
     if rep == REP_DECIMAL:
         return _round_ints(values * _column_scale(decimals, cols))
@@ -225,6 +230,11 @@ def float32_quantum(values: np.ndarray) -> float:
     squares on ``n = round(value / q)``, first on small values (where ``n`` cannot be wrong); the candidate
     (or its float32 rounding) is kept if it gives back at least 90 % of the values exactly.
     """
+    with np.errstate(all="ignore"):
+        return _float32_quantum(values)
+
+
+def _float32_quantum(values: np.ndarray) -> float:
     v = values[np.isfinite(values)]
     if v.size < 16 or not np.array_equal(v.astype(np.float32).astype(np.float64), v):
         return 0.0

@@ -8,14 +8,17 @@ frame ``t >= 2``::
 
 where the ``p_k`` are up to :data:`MAX_PREDICTORS` columns coded before ``c`` (any joint or marker among
 the :data:`WINDOW` columns before it), chosen by the encoder (greedy matching pursuit on the second
-differences, kept only while they pay for their coefficients) and listed in the ``coef`` section.
+differences, kept only while they pay for their coefficients) and listed in the ``coef`` section
+(:func:`pack_predictors`).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
+from mocapz.codecs.lossless.coding import pack_small, unpack_small
 from mocapz.errors import FormatError
+from mocapz.format.entropy import read_uvarint, unzigzag, write_uvarint, zigzag
 
 COEF_SHIFT = 8
 COEF_LIMIT = 1 << 20
@@ -88,35 +91,42 @@ def choose_predictors(d2: np.ndarray, col: int, before: list[int], rows: np.ndar
     return best[1], best[2]
 
 
-def pack_predictors(order: list[int], table: list[tuple[list[int], np.ndarray]]) -> np.ndarray:
-    """The ``coef`` section's integers: per column in order, the predictor count, each predictor as its
-    distance back in the coding order, then the coefficients."""
+def pack_predictors(order: list[int], table: list[tuple[list[int], np.ndarray]]) -> bytes:
+    """The ``coef`` section: uvarint length and small list (:func:`~.coding.pack_small`) of, per column in
+    coding order, the predictor count and each predictor's distance back in the coding order; then a small
+    list of all the zig-zagged coefficients."""
     where = {c: i for i, c in enumerate(order)}
-    out: list[int] = []
+    meta: list[int] = []
+    coefs: list[int] = []
     for i, (preds, coef) in enumerate(table):
-        out.append(len(preds))
-        out.extend(i - where[p] for p in preds)
-        out.extend(int(v) for v in coef)
-    return np.asarray(out, dtype=np.int64)
+        meta.append(len(preds))
+        meta.extend(i - where[p] for p in preds)
+        coefs.extend(int(v) for v in coef)
+    head = pack_small(np.asarray(meta, dtype=np.uint64))
+    return write_uvarint(len(head)) + head + pack_small(zigzag(np.asarray(coefs, dtype=np.int64)))
 
 
-def unpack_predictors(order: list[int], values: np.ndarray) -> list[tuple[list[int], np.ndarray]]:
-    """Inverse of :func:`pack_predictors` (every count and distance checked)."""
+def unpack_predictors(order: list[int], data: bytes) -> list[tuple[list[int], np.ndarray]]:
+    """Inverse of :func:`pack_predictors` (every count, distance and coefficient checked)."""
+    size, pos = read_uvarint(data, 0)
+    if pos + size > len(data):
+        raise FormatError(None, "corrupted lossless stream (predictor table)")
+    meta = unpack_small(data[pos : pos + size], at_most=(1 + MAX_PREDICTORS) * len(order)).tolist()
+    coefs = unzigzag(unpack_small(data[pos + size :], at_most=MAX_PREDICTORS * len(order))).tolist()
     table: list[tuple[list[int], np.ndarray]] = []
-    vals = values.tolist()
-    pos = 0
+    at = used = 0
     for i in range(len(order)):
-        if pos >= len(vals) or not 0 <= vals[pos] <= MAX_PREDICTORS:
+        if at >= len(meta) or not 0 <= meta[at] <= MAX_PREDICTORS:
             raise FormatError(None, "corrupted lossless stream (predictor table)")
-        n = vals[pos]
-        back = vals[pos + 1 : pos + 1 + n]
-        coef = vals[pos + 1 + n : pos + 1 + 2 * n]
-        pos += 1 + 2 * n
-        if len(coef) != n or any(not 1 <= b <= min(i, WINDOW) for b in back):
+        n = meta[at]
+        back = meta[at + 1 : at + 1 + n]
+        coef = coefs[used : used + n]
+        at, used = at + 1 + n, used + n
+        if len(back) != n or len(coef) != n or any(not 1 <= b <= min(i, WINDOW) for b in back):
             raise FormatError(None, "corrupted lossless stream (predictor table)")
         if any(abs(v) > COEF_LIMIT for v in coef):
             raise FormatError(None, "corrupted lossless stream (predictor coefficient)")
         table.append(([order[i - b] for b in back], np.asarray(coef, dtype=np.int64)))
-    if pos != len(vals):
+    if at != len(meta) or used != len(coefs):
         raise FormatError(None, "corrupted lossless stream (predictor table length)")
     return table
