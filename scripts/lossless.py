@@ -142,6 +142,7 @@ def report(rows: list[dict[str, object]]) -> str:
         "",
         "Integer C3D files (Eb015pi, si, vi) are measured as the reader gives them: without the POINT:SCALE",
         "quantum on the motion they are coded as float64 values; with it (MarkerMotion.quantum) as integers.",
+        "Their bzip2 baseline codes the values rounded to float32, which is not lossless for them.",
         "",
     ]
     return "\n".join(out)
