@@ -76,7 +76,7 @@ def test_byte_layout_as_documented(small: bytes, clip: Motion) -> None:
     assert small[4] == FORMAT_VERSION == 1
     n = small[5]
     assert small[6 : 6 + n] == b"lossless"
-    assert small[6 + n] == 1  # lossless codec version
+    assert small[6 + n] == 2  # lossless codec version
     ln, pos = _uvarint(small, 7 + n)
     layout = small[pos : pos + ln]
     zlen, zpos = _uvarint(layout, 0)
@@ -105,9 +105,9 @@ def test_byte_layout_as_documented(small: bytes, clip: Motion) -> None:
         pos += m
     assert pos == len(small) - 4
     assert struct.unpack("<I", small[-4:])[0] == zlib.crc32(small[:-4])
-    assert list(sections) == ["rep", "head", "const", "coef", "res"]
+    assert [k for k in sections if k not in ("exc", "negz")] == ["rep", "const", "head", "coef", "res"]
     box = Container.from_bytes(small)
-    assert box.codec == "lossless" and box.codec_version == 1 and box.layout == layout
+    assert box.codec == "lossless" and box.codec_version == 2 and box.layout == layout
     assert box.sections == sections
 
 
@@ -233,7 +233,7 @@ def test_errors_name_the_file(small: bytes) -> None:
     box = Container.from_bytes(small)
     sections = dict(box.sections, res=b"\x01\x05")
     with pytest.raises(FormatError) as err:
-        mocapz.decompress(Container("lossless", 1, box.layout, sections).to_bytes(), "x.mcz")
+        mocapz.decompress(Container("lossless", 2, box.layout, sections).to_bytes(), "x.mcz")
     assert str(err.value).startswith("x.mcz: ")
 
 
@@ -242,11 +242,11 @@ def test_missing_empty_or_garbage_section(small: bytes, name: str) -> None:
     box = Container.from_bytes(small)
     missing = {k: v for k, v in box.sections.items() if k != name}
     for sections in (missing, dict(box.sections, **{name: b""}), dict(box.sections, **{name: b"\x07garbage" * 3})):
-        r = _decodes_or_format_error(Container("lossless", 1, box.layout, sections).to_bytes())
+        r = _decodes_or_format_error(Container("lossless", 2, box.layout, sections).to_bytes())
         allowed = ("format", "ok") if name == "rep" else ("format",)  # any rep byte names a representation
         assert r in allowed, r
     with pytest.raises(FormatError, match="missing section"):
-        mocapz.decompress(Container("lossless", 1, box.layout, missing).to_bytes())
+        mocapz.decompress(Container("lossless", 2, box.layout, missing).to_bytes())
 
 
 def _relayout(small: bytes, edit: dict[str, object]) -> bytes:
@@ -284,7 +284,7 @@ def test_layout_not_json(small: bytes) -> None:
                 zstandard.ZstdCompressor(dict_data=_DICT).compress(b"[1, 2]"),
                 zstandard.ZstdCompressor().compress(b'{"kind": "skeleton"}'),  # no dictionary: still valid zstd
                 b"\x28\xb5\x2f\xfd\x00", b""):
-        assert _decodes_or_format_error(Container("lossless", 1, raw, box.sections).to_bytes()) == "format"
+        assert _decodes_or_format_error(Container("lossless", 2, raw, box.sections).to_bytes()) == "format"
 
 
 # --------------------------------------------------------------------- crafted sizes (memory bombs)
@@ -298,7 +298,7 @@ def _zstd_frame_claiming(size: int) -> bytes:
 def test_layout_claiming_huge_size(small: bytes) -> None:
     """A layout frame that claims 1 TiB of JSON must be a FormatError (not a MemoryError)."""
     box = Container.from_bytes(small)
-    data = Container("lossless", 1, _zstd_frame_claiming(1 << 40), box.sections).to_bytes()
+    data = Container("lossless", 2, _zstd_frame_claiming(1 << 40), box.sections).to_bytes()
     assert _decodes_or_format_error(data) == "format"
 
 
@@ -306,7 +306,7 @@ def test_section_claiming_huge_size(small: bytes) -> None:
     """A byte-plane stream (entropy.pack_uint64) whose zstd frame claims 1 TiB: FormatError."""
     box = Container.from_bytes(small)
     head = b"\x08\x01" + _zstd_frame_claiming(1 << 40)  # 8 values, 1 byte each
-    data = Container("lossless", 1, box.layout, dict(box.sections, head=head)).to_bytes()
+    data = Container("lossless", 2, box.layout, dict(box.sections, head=head)).to_bytes()
     assert _decodes_or_format_error(data) == "format"
 
 

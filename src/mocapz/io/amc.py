@@ -20,7 +20,7 @@ import numpy as np
 from mocapz.errors import FormatError, MocapzError
 from mocapz.io.asf import Asf, build_skeleton, find_asf, parse_asf
 from mocapz.io.asf_write import asf_for
-from mocapz.io.common import atomic_write, detect_decimals, read_text
+from mocapz.io.common import atomic_write, common_decimals, exact_text_mask, read_text
 from mocapz.model.motion import Motion
 from mocapz.model.skeleton import Skeleton
 
@@ -75,20 +75,13 @@ def read_asfamc(
 
 
 def exact_decimals(channels: np.ndarray) -> np.ndarray | None:
-    """Decimals per column ``(channels,)`` that reproduce every value exactly, else ``None``.
+    """The common decimals per column ``(channels,)`` (:func:`~mocapz.io.common.common_decimals`), or ``None``.
 
-    AMC files write 6 significant digits (``%g``), so columns of tiny values such as ``3.64024e-015``
-    need more decimals than :func:`detect_decimals` tries; it would call them 0 decimals, which is
-    lossy. Such files get ``None`` (values then written with ``repr`` and coded as float64).
+    AMC files write 6 significant digits (``%g``), so a column may hold a few tiny values such as
+    ``3.64024e-015`` beside its ordinary ones: those are per-value exceptions (kept exactly by the lossless
+    codec, written back with ``repr``), not a reason to give the whole clip up.
     """
-    if not channels.size:
-        return None
-    dec = detect_decimals(channels)
-    if dec is None:
-        return None
-    scale = 10.0 ** dec.astype(np.float64)
-    exact = np.round(channels * scale) / scale == channels
-    return dec if bool(exact.all()) else None
+    return common_decimals(channels) if channels.size else None
 
 
 # ---------------------------------------------------------------------------- frame records
@@ -309,6 +302,7 @@ def _amc_text(motion: Motion, asf_path: Path, layout: dict[str, tuple[int, tuple
     slices = sk.channel_slices()
     cols: list[int] = []
     template = ["%d\n"]
+    plain_template = ["%d\n"]
     for j, chs in layout.values():
         cols.extend(slices[j].start + sk.channels[j].index(c) for c in chs)
     if sorted(cols) != list(range(sk.n_channels)):
@@ -318,13 +312,24 @@ def _amc_text(motion: Motion, asf_path: Path, layout: dict[str, tuple[int, tuple
     fmts = iter(["%r"] * len(cols) if dec is None else [f"%.{int(d)}f" for d in dec])
     for bone, (_, chs) in layout.items():
         template.append(bone.replace("%", "%%") + "".join(" " + next(fmts) for _ in chs) + "\n")
+        plain_template.append(bone.replace("%", "%%") + " %s" * len(chs) + "\n")
     fmt = "".join(template)
-    if dec is not None:  # avoid "-0.000" noise from values that round to zero
-        values = np.where(np.abs(values) < 0.5 * 10.0 ** (-dec.astype(float)), 0.0, values)
+    exact = np.zeros(values.shape, dtype=bool)
+    if dec is not None:  # the few values off the decimals are written with repr; no "-0.000" rounding noise
+        exact = exact_text_mask(values, dec)
+        noise = np.abs(values) < 0.5 * 10.0 ** (-dec.astype(float))
+        values = np.where(noise & ~exact & (values != 0), 0.0, values)
     first = int(motion.metadata.get("amc_first_frame", 1))
     header = _amc_header_lines(motion, sk.angle_unit, asf_path)
-    body = "".join(fmt % (first + f, *row) for f, row in enumerate(values.tolist()))
-    return header + body
+    frames = [fmt % (first + f, *row) for f, row in enumerate(values.tolist())]
+    if exact.any():
+        plain = "".join(plain_template)
+        for f in np.flatnonzero(exact.any(axis=1)).tolist():
+            assert dec is not None
+            texts = [repr(v) if e else f"%.{int(d)}f" % v
+                     for v, e, d in zip(values[f].tolist(), exact[f].tolist(), dec.tolist(), strict=True)]
+            frames[f] = plain % (first + f, *texts)
+    return header + "".join(frames)
 
 def _amc_header_lines(motion: Motion, angle_unit: str, asf_path: Path) -> str:
     kept = [h for h in motion.metadata.get("amc_header", []) if not h.upper().startswith("#!OML:ASF")]

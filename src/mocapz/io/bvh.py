@@ -15,7 +15,7 @@ from mocapz.errors import FormatError
 from mocapz.io.common import (
     CMU_UNIT_CM,
     atomic_write,
-    detect_decimals,
+    common_decimals,
     format_rows,
     guess_unit_cm,
     read_text,
@@ -83,7 +83,7 @@ def read_bvh(path: str | os.PathLike[str]) -> Motion:
         frame_rate=snap_rate(1.0 / frame_time),
         name=path.stem,
         source_format="bvh",
-        decimals=detect_decimals(channels) if channels.size else None,
+        decimals=common_decimals(channels) if channels.size else None,
         metadata={"path": str(path), "file_bytes": path.stat().st_size, "frame_time": frame_time},
     )
 

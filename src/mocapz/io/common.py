@@ -15,34 +15,66 @@ from mocapz.model.skeleton import Skeleton
 CMU_UNIT_CM = 2.54 / 0.45  # CMU ASF "length 0.45": 1 unit = 1/0.45 inch = 5.644 cm
 
 
+def exception_budget(rows: int) -> int:
+    """How many values of a column of ``rows`` values may miss its common decimals (1 %, at least 1): those
+    are kept exactly as per-value exceptions."""
+    return rows // 100 + 1
+
+
+def fits_decimals(values: np.ndarray, decimals: np.ndarray) -> np.ndarray:
+    """True where a value is the float64 of a number with ``decimals`` decimals (per column; NaN: False), so
+    that ``%.{d}f`` text reads back to the same value (``-0`` included: it prints as ``-0.000``)."""
+    scale = 10.0 ** np.asarray(decimals, dtype=np.float64)
+    with np.errstate(invalid="ignore", over="ignore"):
+        scaled = values * scale
+        return (np.abs(scaled) < 2.0**52) & (np.round(scaled) / scale == values)
+
+
 def detect_decimals(values: np.ndarray, max_decimals: int = 9) -> np.ndarray | None:
-    """Smallest decimal count per column that represents every value exactly.
+    """Smallest decimal count per column that represents every value exactly (``None`` if some column needs
+    more than ``max_decimals``); :func:`common_decimals` allows a few exceptions."""
+    return common_decimals(values, max_decimals, exceptions=False)
+
+
+def common_decimals(values: np.ndarray, max_decimals: int = 9, exceptions: bool = True) -> np.ndarray | None:
+    """The common decimal count of each column: the smallest that represents every value that has at most
+    ``max_decimals`` decimals. The few others (at most :func:`exception_budget`: float artefacts such as
+    ``-0.00709999999999``) are exceptions, kept exactly by the lossless codec and written back with ``repr``;
+    none are allowed with ``exceptions=False``.
 
     Args:
         values: ``(rows, columns)`` float64 parsed from decimal text.
 
     Returns:
-        ``(columns,)`` int64, or ``None`` if some column needs more than ``max_decimals`` (then the
-        values are kept as float64).
+        ``(columns,)`` int64, or ``None`` if some column has more values than that off every decimal count
+        up to ``max_decimals`` (then the values are kept as float64).
     """
     values = np.asarray(values, dtype=np.float64)
     if values.ndim == 1:
         values = values[:, None]
-    out = np.full(values.shape[1], -1, dtype=np.int64)
-    todo = np.ones(values.shape[1], dtype=bool)
-    for d in range(max_decimals + 1):
-        if not todo.any():
-            break
-        v = values[:, todo] * (10.0**d)
-        if np.abs(v).max(initial=0.0) >= 2**52:
-            break
-        ok = np.all(np.round(v) / (10.0**d) == values[:, todo], axis=0)
-        idx = np.flatnonzero(todo)[ok]
-        out[idx] = d
-        todo[idx] = False
-    if todo.any():
+    rows, cols = values.shape
+    budget = exception_budget(rows) if exceptions else 0
+    slack = rows // 100 if exceptions else 0  # values with a few more decimals than the rest: exceptions too
+    finite = np.isfinite(values)
+    fit = np.stack([fits_decimals(values, np.full(cols, d)) for d in range(max_decimals + 1)])
+    never = finite & ~fit.any(axis=0)
+    if (never.sum(axis=0) > budget).any():
         return None
-    return out
+    misses = (finite & ~never)[None] & ~fit  # (decimals, rows, cols): fittable values off each count
+    ok = misses.sum(axis=1) <= slack  # (decimals, cols)
+    if not ok.any(axis=0).all():
+        return None
+    return np.argmax(ok, axis=0).astype(np.int64)
+
+
+def exact_text_mask(values: np.ndarray, decimals: np.ndarray) -> np.ndarray:
+    """``(rows, columns)`` True for the finite values a writer must write with ``repr`` to read back exactly:
+    those off their column's decimals, in columns where they are few (:func:`exception_budget`). Columns
+    where most values are off (decoded by a lossy codec) are rounded to the decimals instead."""
+    fits = fits_decimals(values, decimals)
+    off = ~fits & np.isfinite(values)
+    few = off.sum(axis=0) <= exception_budget(values.shape[0])
+    return off & few[None, :]
 
 
 #: Heights of a standing adult body, centimetres: a skeleton's unit is guessed as the candidate unit that
@@ -188,17 +220,26 @@ def read_text(path: str | os.PathLike[str]) -> str:
 def format_rows(values: np.ndarray, decimals: np.ndarray | int | None, sep: str = " ") -> str:
     """Format a ``(rows, columns)`` array as text lines with fixed decimals per column.
 
-    ``decimals=None`` writes the shortest text that reads back to the same float64 (``repr``).
+    ``decimals=None`` writes the shortest text that reads back to the same float64 (``repr``). With decimals,
+    the few values off their column's decimals (:func:`exact_text_mask`) are written with ``repr`` too, and
+    ``-0`` as ``-0.000``, so values read from a file are written back exactly; values of lossy columns
+    are rounded (those that round to zero without being zero are written ``0.000``, not ``-0.000``).
     """
     values = np.asarray(values, dtype=np.float64)
     if decimals is None:
         return "\n".join(sep.join(map(repr, row)) for row in values.tolist()) + "\n"
     cols = values.shape[1]
     dec = np.broadcast_to(np.asarray(decimals, dtype=np.int64), (cols,))
-    fmt = sep.join(f"%.{int(d)}f" for d in dec)
-    # Avoid "-0.000" noise from values that round to zero.
-    rounded = np.where(np.abs(values) < 0.5 * 10.0 ** (-dec.astype(float)), 0.0, values)
-    return "\n".join(fmt % tuple(row) for row in rounded.tolist()) + "\n"
+    fmts = [f"%.{int(d)}f" for d in dec]
+    fmt = sep.join(fmts)
+    exact = exact_text_mask(values, dec)
+    noise = (np.abs(values) < 0.5 * 10.0 ** (-dec.astype(float))) & ~fits_decimals(values, dec) & ~exact
+    rounded = np.where(noise, 0.0, values)
+    lines = [fmt % tuple(row) for row in rounded.tolist()]
+    for r in np.flatnonzero(exact.any(axis=1)).tolist():
+        lines[r] = sep.join(repr(v) if e else f % v
+                            for f, v, e in zip(fmts, values[r].tolist(), exact[r].tolist(), strict=True))
+    return "\n".join(lines) + "\n"
 
 
 def snap_rate(rate: float) -> float:

@@ -31,7 +31,14 @@ from typing import Any
 import numpy as np
 
 from mocapz.errors import FormatError
-from mocapz.io.common import atomic_write, detect_decimals, read_text
+from mocapz.io.common import (
+    atomic_write,
+    common_decimals,
+    detect_decimals,
+    exception_budget,
+    fits_decimals,
+    read_text,
+)
 from mocapz.io.trc_header import HEADER_LINES, TRCHeader, first_frame, header_text, orig_start_frame, parse_header
 from mocapz.model.motion import MarkerMotion
 
@@ -212,7 +219,7 @@ def _decimals(positions: np.ndarray) -> int | None:
     values = positions[np.isfinite(positions)]
     if not values.size:
         return None
-    dec = detect_decimals(values[:, None])
+    dec = common_decimals(values[:, None])
     return None if dec is None else int(dec[0])
 
 
@@ -292,9 +299,18 @@ def _data_text(motion: MarkerMotion) -> str:
     table[:, 2:] = positions.reshape(n, -1)
     value_fmt = "%r" if motion.decimals is None else f"%.{int(motion.decimals)}f"
     tail = "\t" if motion.metadata.get("trc_trailing_tab", False) else ""
-    fmt = "\t".join([frame_fmt, time_fmt] + [value_fmt] * (3 * motion.n_markers)) + tail
-    rows = "\n".join(fmt % tuple(row) for row in table.tolist())
-    return rows.replace("nan", "") + "\n"
+    fmts = [frame_fmt, time_fmt] + [value_fmt] * (3 * motion.n_markers)
+    fmt = "\t".join(fmts) + tail
+    lines = [fmt % tuple(row) for row in table.tolist()]
+    if motion.decimals is not None:  # the few values off the common decimals: written to read back exactly
+        values = table[:, 2:]
+        off = ~fits_decimals(values, np.full(values.shape[1], int(motion.decimals))) & np.isfinite(values)
+        if off.sum() <= exception_budget(int(np.isfinite(values).sum())):
+            for r in np.flatnonzero(off.any(axis=1)).tolist():
+                row = [repr(v) if c >= 2 and off[r, c - 2] else f % v
+                       for c, (f, v) in enumerate(zip(fmts, table[r].tolist(), strict=True))]
+                lines[r] = "\t".join(row).replace("nan", "") + tail
+    return "\n".join(lines).replace("nan", "") + "\n"
 
 
 def _frame_column(motion: MarkerMotion) -> tuple[np.ndarray, str]:

@@ -12,7 +12,7 @@ from mocapz.codecs import CodecInfo
 from mocapz.codecs.lossless.decode import decode
 from mocapz.codecs.lossless.encode import encode
 
-VERSION = 1
+VERSION = 2
 
 INFO = CodecInfo(
     name="lossless",

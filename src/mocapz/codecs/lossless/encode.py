@@ -1,13 +1,33 @@
-"""Lossless encoder."""
+"""Lossless encoder.
+
+Sections: ``rep`` (the representation byte; the quantum as float64 for the quantum forms; per-column
+representations and decimals for ``REP_COLUMNS``, :mod:`.columns`), ``gaps``
+(marker clips with missing samples: packed mask), ``const`` (columns whose observed values never change),
+``head`` (first frame, and first differences of the other columns), ``coef`` (cross-channel predictor
+coefficients), ``res`` (prediction residuals of the observed samples, :mod:`.coding`), ``exc`` and
+``negz`` (per-value exceptions and ``-0`` positions, present only when there are some).
+"""
 
 from __future__ import annotations
 
+import struct
+
 import numpy as np
 
-from mocapz.codecs.gaps import fill_hold, pack_mask
-from mocapz.codecs.lossless.integers import to_integers
-from mocapz.codecs.lossless.predict import cross_term, fit_coef, predictor_columns
-from mocapz.format.entropy import encode_int_matrix, pack_uint64, zigzag
+from mocapz.codecs.gaps import pack_mask
+from mocapz.codecs.lossless.coding import encode_indices, encode_residuals, pack_small
+from mocapz.codecs.lossless.columns import column_form, pack_columns
+from mocapz.codecs.lossless.integers import (
+    QUANTUM_REPS,
+    REP_COLUMNS,
+    REP_DECIMAL,
+    IntegerForm,
+    choose_form,
+    estimated_bits,
+    form_values,
+)
+from mocapz.codecs.lossless.predict import choose_predictors, coding_order, cross_term, pack_predictors
+from mocapz.format.entropy import pack_uint64, write_uvarint, zigzag
 from mocapz.model.motion import AnyMotion, Motion
 
 
@@ -19,14 +39,21 @@ def column_groups(motion: AnyMotion) -> list[list[int]]:
 
 
 def value_matrix(motion: AnyMotion) -> tuple[np.ndarray, np.ndarray | None]:
-    """``(frames, columns)`` values with gaps filled (for prediction), and the gap mask or None."""
+    """``(frames, columns)`` values with gaps set to 0, and the gap mask (True = missing) or None."""
     if isinstance(motion, Motion):
         return motion.channels, None
     pos = motion.positions.reshape(motion.n_frames, 3 * motion.n_markers)
     gaps = ~np.isfinite(pos)
     if not gaps.any():
         return pos, None
-    return fill_hold(pos, gaps), gaps
+    return np.where(gaps, 0.0, pos), gaps
+
+
+def motion_decimals(motion: AnyMotion, cols: int) -> np.ndarray | None:
+    """``(columns,)`` decimals of the source text, or None."""
+    if motion.decimals is None:
+        return None
+    return np.broadcast_to(np.asarray(motion.decimals, dtype=np.int64), (cols,))
 
 
 def encode(motion: AnyMotion, **options: object) -> dict[str, bytes]:
@@ -36,31 +63,97 @@ def encode(motion: AnyMotion, **options: object) -> dict[str, bytes]:
 
         raise OptionError(f"the lossless codec takes no options (got {', '.join(options)})")
     values, gaps = value_matrix(motion)
-    decimals = motion.decimals if isinstance(motion, Motion) else (
-        None if motion.decimals is None else np.full(values.shape[1], motion.decimals)
-    )
-    rep, x = to_integers(values, decimals)
-    frames, cols = x.shape
-    sections: dict[str, bytes] = {"rep": bytes([rep])}
+    decimals = motion_decimals(motion, values.shape[1])
+    form = choose_form(values, decimals, getattr(motion, "quantum", None))
+    fits = form.rep in (REP_DECIMAL, *QUANTUM_REPS) and form.exceptions.size * 1000 <= values.size
+    if not fits and values.shape[0] > 2 and values.shape[1]:
+        by_column, bits = column_form(values)
+        if bits < 0.97 * estimated_bits(form):  # the estimates are rough: only a clear gain
+            form = by_column
+    sections: dict[str, bytes] = {"rep": bytes([form.rep])}
+    if form.rep in QUANTUM_REPS:
+        sections["rep"] += struct.pack("<d", form.quantum)
+    elif form.rep == REP_COLUMNS:
+        sections["rep"] = pack_columns(form)
     if gaps is not None:
         sections["gaps"] = pack_mask(gaps)
-    if frames == 0:
-        return sections
-    const = (x == x[0]).all(axis=0)
-    d1 = (x[1] - x[0])[~const] if frames > 1 else np.zeros(0, dtype=np.int64)
-    sections["head"] = pack_uint64(zigzag(np.concatenate([x[0], d1])))
-    sections["const"] = pack_mask(const)
-    if frames <= 2 or const.all():
-        return sections
-    d2 = x[2:] - 2 * x[1:-1] + x[:-2]
-    groups = [[c for c in g if not const[c]] for g in column_groups(motion)]
-    order = predictor_columns([g for g in groups if g])
-    residual = np.empty((frames - 2, len(order)), dtype=np.int64)
-    coefs: list[int] = []
-    for k, (c, preds) in enumerate(order):
-        coef = fit_coef(d2, c, preds)
-        coefs.extend(coef.tolist())
-        residual[:, k] = d2[:, c] - cross_term(d2, preds, coef)
-    sections["coef"] = pack_uint64(zigzag(np.asarray(coefs, dtype=np.int64)))
-    sections["res"] = encode_int_matrix(residual)
+    sections.update(_value_sections(form, decimals))
+    sections.update(_integer_sections(form.ints, gaps, column_groups(motion)))
     return sections
+
+
+def _value_sections(form: IntegerForm, decimals: np.ndarray | None) -> dict[str, bytes]:
+    """``exc`` (uvarint size of the position list, the positions, then the XOR of each exact value's bits with
+    its placeholder's) and ``negz``.
+
+    Positions are column-major (``column * frames + frame``), where the odd values of one channel cluster."""
+    frames, cols = form.ints.shape
+    out: dict[str, bytes] = {}
+    if form.exceptions.size:
+        t, c = np.divmod(form.exceptions, cols)
+        order = np.argsort(c * frames + t, kind="stable")
+        idx = form.exceptions[order]
+        placeholder = form_values(form, decimals).ravel()[idx]
+        xor = placeholder.view(np.uint64) ^ form.exact[order].view(np.uint64)
+        pos = encode_indices(np.sort(c * frames + t))
+        out["exc"] = write_uvarint(len(pos)) + pos + pack_small(xor)
+    if form.negzero.size:
+        t, c = np.divmod(form.negzero, cols)
+        out["negz"] = encode_indices(np.sort(c * frames + t))
+    return out
+
+
+def _integer_sections(x: np.ndarray, gaps: np.ndarray | None, groups: list[list[int]]) -> dict[str, bytes]:
+    """``const``, ``head``, ``coef`` and ``res`` for the integers ``x`` ``(frames, columns)``.
+
+    Missing samples are filled so that their second difference equals the cross-channel prediction: their
+    residual is then 0 and is not coded (the decoder knows where the gaps are)."""
+    frames, cols = x.shape
+    if frames == 0:
+        return {}
+    x = x.copy()
+    observed = np.ones_like(x, dtype=bool) if gaps is None else ~gaps
+    const = np.ones(cols, dtype=bool)
+    for c in range(cols):
+        seen = x[observed[:, c], c]
+        const[c] = seen.size == 0 or bool((seen == seen[0]).all())
+        fill = seen[0] if seen.size else 0
+        if const[c]:
+            x[:, c] = fill
+        elif not observed[0, c]:
+            x[0, c] = fill
+    active = np.flatnonzero(~const)
+    if frames > 1:
+        hold = active[~observed[1, active]]
+        x[1, hold] = x[0, hold]
+    d1 = (x[1] - x[0])[active] if frames > 1 else np.zeros(0, dtype=np.int64)
+    out = {"const": pack_mask(const), "head": pack_uint64(zigzag(np.concatenate([x[0], d1])))}
+    if frames <= 2 or not active.size:
+        return out
+    order = coding_order([[c for c in g if not const[c]] for g in groups])
+    d2 = np.zeros((frames - 2, cols), dtype=np.int64)
+    residual = np.empty((frames - 2, len(order)), dtype=np.int64)
+    coded = observed[2:, order]
+    table: list[tuple[list[int], np.ndarray]] = []
+    for k, c in enumerate(order):
+        rows = np.flatnonzero(observed[2:, c] & observed[1:-1, c] & observed[:-2, c])
+        d2[:, c] = x[2:, c] - 2 * x[1:-1, c] + x[:-2, c]
+        preds, coef = choose_predictors(d2, c, order[:k], rows)
+        table.append((preds, coef))
+        cross = cross_term(d2, preds, coef)
+        if not coded[:, k].all():
+            _fill_gaps(x[:, c], ~coded[:, k], cross)
+            d2[:, c] = x[2:, c] - 2 * x[1:-1, c] + x[:-2, c]
+        residual[:, k] = np.where(coded[:, k], d2[:, c] - cross, 0)
+    out["coef"] = pack_predictors(order, table)
+    out["res"] = encode_residuals(residual, coded)
+    return out
+
+
+def _fill_gaps(col: np.ndarray, missing: np.ndarray, cross: np.ndarray) -> None:
+    """Set ``col[t + 2]`` for every missing ``t`` so that its second difference is ``cross[t]`` (in place)."""
+    v = col.tolist()
+    cr = cross.tolist()
+    for t in np.flatnonzero(missing).tolist():  # wrapping int64 arithmetic, as the decoder's numpy sums
+        v[t + 2] = ((2 * v[t + 1] - v[t] + cr[t] + (1 << 63)) & ((1 << 64) - 1)) - (1 << 63)
+    col[:] = np.asarray(v, dtype=np.int64)

@@ -1,45 +1,132 @@
 """Prediction shared by the lossless encoder and decoder (exact integer arithmetic only).
 
-Residual of column ``c`` at frame ``t >= 2``::
+Columns are coded in a fixed order (skeleton channels, or marker x y z). Residual of column ``c`` at
+frame ``t >= 2``::
 
     d2[t, c] = x[t, c] - 2 x[t-1, c] + x[t-2, c]
     r[t, c]  = d2[t, c] - ((sum_k coef[c, k] * d2[t, p_k]) + 512) >> 10
 
-where ``p_k`` are the (at most two) columns of the same group (joint, marker) coded before ``c``.
+where the ``p_k`` are up to :data:`MAX_PREDICTORS` columns coded before ``c`` (any joint or marker among
+the :data:`WINDOW` columns before it), chosen by the encoder (greedy matching pursuit on the second
+differences, kept only while they pay for their coefficients) and listed in the ``coef`` section
+(:func:`pack_predictors`).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-COEF_SHIFT = 10
-MAX_PREDICTORS = 2
+from mocapz.codecs.lossless.coding import pack_small, unpack_small
+from mocapz.errors import FormatError
+from mocapz.format.entropy import read_uvarint, unzigzag, write_uvarint, zigzag
+
+COEF_SHIFT = 8
+COEF_LIMIT = 1 << 20
+MAX_PREDICTORS = 6
+WINDOW = 64  # candidate predictors: the columns coded just before
+FIT_ROWS = 2048  # rows used to choose and fit predictors (evenly spread)
+PREDICTOR_BITS = 24.0  # estimated cost of one predictor (its index and coefficient) in bits
 
 
-def predictor_columns(groups: list[list[int]]) -> list[tuple[int, list[int]]]:
-    """Coding order: ``(column, predictor columns)`` for every column of every group."""
-    order = []
-    for cols in groups:
-        for i, c in enumerate(cols):
-            order.append((c, cols[max(0, i - MAX_PREDICTORS) : i]))
-    return order
+def coding_order(groups: list[list[int]]) -> list[int]:
+    """The columns in coding order (groups in order, columns of a group in order)."""
+    return [c for g in groups for c in g]
 
 
 def cross_term(d2: np.ndarray, preds: list[int], coef: np.ndarray) -> np.ndarray:
     """Integer prediction of one column's second differences from its predictor columns."""
     if not preds:
         return np.zeros(d2.shape[0], dtype=np.int64)
-    acc = d2[:, preds] @ coef.astype(np.int64)
+    acc = d2[:, preds] @ np.asarray(coef, dtype=np.int64)
     return (acc + (1 << (COEF_SHIFT - 1))) >> COEF_SHIFT
 
 
-def fit_coef(d2: np.ndarray, col: int, preds: list[int]) -> np.ndarray:
-    """Least-squares predictor coefficients, rounded to the fixed-point grid (kept only if they help)."""
-    if not preds or d2.shape[0] < 4:
-        return np.zeros(len(preds), dtype=np.int64)
-    a = d2[:, preds].astype(np.float64)
-    y = d2[:, col].astype(np.float64)
-    sol, *_ = np.linalg.lstsq(a, y, rcond=None)
-    coef = np.clip(np.round(sol * (1 << COEF_SHIFT)), -(1 << 20), 1 << 20).astype(np.int64)
-    gain = np.abs(y).sum() - np.abs(y - cross_term(d2, preds, coef)).sum()
-    return coef if gain > 0 else np.zeros(len(preds), dtype=np.int64)
+def _cost(r: np.ndarray) -> float:
+    """Estimated bits of residuals ``r`` (Laplace: ``n * log2(mean |r| + 1)``)."""
+    return float(r.size * np.log2(np.abs(r).mean() + 1.0)) if r.size else 0.0
+
+
+def choose_predictors(d2: np.ndarray, col: int, before: list[int], rows: np.ndarray) -> tuple[list[int], np.ndarray]:
+    """Predictor columns and fixed-point coefficients for ``col``.
+
+    Greedy matching pursuit on the normal equations: each step adds the candidate most correlated with the
+    least-squares residual; the prefix with the lowest estimated cost (residual bits + :data:`PREDICTOR_BITS`
+    per predictor) wins.
+
+    Args:
+        d2: ``(frames - 2, columns)`` int64 second differences, final for the columns in ``before``.
+        col: the column to predict.
+        before: the columns coded before it (candidates: the last :data:`WINDOW`).
+        rows: indices of the rows where ``col`` is observed (the fit uses at most :data:`FIT_ROWS` of them).
+    """
+    cand = before[-WINDOW:]
+    if not cand or rows.size < 8:
+        return [], np.zeros(0, dtype=np.int64)
+    if rows.size > FIT_ROWS:
+        rows = rows[np.linspace(0, rows.size - 1, FIT_ROWS).astype(np.int64)]
+    y = d2[rows, col].astype(np.float64)
+    a = d2[np.ix_(rows, cand)].astype(np.float64)
+    # einsum, not BLAS: a multi-threaded BLAS spinning on a loaded machine is 20x slower here
+    gram = np.einsum("ij,ik->jk", a, a, optimize=False)
+    rhs = np.einsum("ij,i->j", a, y, optimize=False)
+    norms = np.sqrt(np.diag(gram)) + 1e-9
+    best: tuple[float, list[int], np.ndarray] = (_cost(y), [], np.zeros(0, dtype=np.int64))
+    chosen: list[int] = []
+    corr = rhs.copy()
+    for _ in range(min(MAX_PREDICTORS, len(cand))):
+        score = np.abs(corr) / norms
+        score[chosen] = -1.0
+        j = int(np.argmax(score))
+        if score[j] <= 1e-9:
+            break
+        chosen.append(j)
+        sub = gram[np.ix_(chosen, chosen)]
+        sol = np.linalg.lstsq(sub, rhs[chosen], rcond=None)[0]
+        corr = rhs - np.einsum("jk,k->j", gram[:, chosen], sol, optimize=False)
+        coef = np.clip(np.round(sol * (1 << COEF_SHIFT)), -COEF_LIMIT, COEF_LIMIT).astype(np.int64)
+        resid = y - np.einsum("ik,k->i", a[:, chosen], coef / float(1 << COEF_SHIFT), optimize=False)
+        cost = _cost(resid) + PREDICTOR_BITS * len(chosen)
+        if cost < best[0]:
+            best = (cost, [cand[i] for i in chosen], coef)
+    return best[1], best[2]
+
+
+def pack_predictors(order: list[int], table: list[tuple[list[int], np.ndarray]]) -> bytes:
+    """The ``coef`` section: uvarint length and small list (:func:`~.coding.pack_small`) of, per column in
+    coding order, the predictor count and each predictor's distance back in the coding order; then a small
+    list of all the zig-zagged coefficients."""
+    where = {c: i for i, c in enumerate(order)}
+    meta: list[int] = []
+    coefs: list[int] = []
+    for i, (preds, coef) in enumerate(table):
+        meta.append(len(preds))
+        meta.extend(i - where[p] for p in preds)
+        coefs.extend(int(v) for v in coef)
+    head = pack_small(np.asarray(meta, dtype=np.uint64))
+    return write_uvarint(len(head)) + head + pack_small(zigzag(np.asarray(coefs, dtype=np.int64)))
+
+
+def unpack_predictors(order: list[int], data: bytes) -> list[tuple[list[int], np.ndarray]]:
+    """Inverse of :func:`pack_predictors` (every count, distance and coefficient checked)."""
+    size, pos = read_uvarint(data, 0)
+    if pos + size > len(data):
+        raise FormatError(None, "corrupted lossless stream (predictor table)")
+    meta = unpack_small(data[pos : pos + size], at_most=(1 + MAX_PREDICTORS) * len(order)).tolist()
+    coefs = unzigzag(unpack_small(data[pos + size :], at_most=MAX_PREDICTORS * len(order))).tolist()
+    table: list[tuple[list[int], np.ndarray]] = []
+    at = used = 0
+    for i in range(len(order)):
+        if at >= len(meta) or not 0 <= meta[at] <= MAX_PREDICTORS:
+            raise FormatError(None, "corrupted lossless stream (predictor table)")
+        n = meta[at]
+        back = meta[at + 1 : at + 1 + n]
+        coef = coefs[used : used + n]
+        at, used = at + 1 + n, used + n
+        if len(back) != n or len(coef) != n or any(not 1 <= b <= min(i, WINDOW) for b in back):
+            raise FormatError(None, "corrupted lossless stream (predictor table)")
+        if any(abs(v) > COEF_LIMIT for v in coef):
+            raise FormatError(None, "corrupted lossless stream (predictor coefficient)")
+        table.append(([order[i - b] for b in back], np.asarray(coef, dtype=np.int64)))
+    if at != len(meta) or used != len(coefs):
+        raise FormatError(None, "corrupted lossless stream (predictor table length)")
+    return table
