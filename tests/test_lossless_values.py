@@ -72,8 +72,6 @@ def test_every_file_bit_exact_and_under_xz(rel: str) -> None:
     data = _packed(rel)
     assert_bit_exact(m, mocapz.decompress(data))
     xz = len(lzma.compress(source_bytes(rel), preset=9 | lzma.PRESET_EXTREME))
-    if len(data) > xz and m.metadata.get("c3d_float") is False and getattr(m, "quantum", None) is None:
-        pytest.xfail("integer C3D: needs the reader to report its scale (MarkerMotion.quantum)")
     assert len(data) <= xz, f"{rel}: .mcz {len(data)} B > xz -9e {xz} B"
 
 

@@ -28,7 +28,7 @@ from mocapz.codecs.lossless.integers import (
 )
 from mocapz.codecs.lossless.predict import choose_predictors, coding_order, cross_term, pack_predictors
 from mocapz.format.entropy import pack_uint64, write_uvarint, zigzag
-from mocapz.model.motion import AnyMotion, Motion
+from mocapz.model.motion import AnyMotion, MarkerMotion, Motion
 
 
 def column_groups(motion: AnyMotion) -> list[list[int]]:
@@ -64,7 +64,7 @@ def encode(motion: AnyMotion, **options: object) -> dict[str, bytes]:
         raise OptionError(f"the lossless codec takes no options (got {', '.join(options)})")
     values, gaps = value_matrix(motion)
     decimals = motion_decimals(motion, values.shape[1])
-    form = choose_form(values, decimals, getattr(motion, "quantum", None))
+    form = choose_form(values, decimals, motion.quantum if isinstance(motion, MarkerMotion) else None)
     fits = form.rep in (REP_DECIMAL, *QUANTUM_REPS) and form.exceptions.size * 1000 <= values.size
     if not fits and values.shape[0] > 2 and values.shape[1]:
         by_column, bits = column_form(values)
