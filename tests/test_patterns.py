@@ -190,7 +190,8 @@ def test_heavier_marker_is_reconstructed_more_accurately(c3d_short: MarkerMotion
     i = c3d_short.labels.index("LSHO")
 
     def marker_rms(weight: float) -> float:
-        d = decompress(compress(c3d_short, codec="patterns", bits=3, tolerance=0.05, weights={"LSHO": weight}))
+        d = decompress(compress(c3d_short, codec="patterns", bits=3, tolerance=0.05, weights={"LSHO": weight},
+                                max_error="1m", hold_feet=False))  # a loose target: the model's errors
         return float(np.sqrt(np.nanmean(np.sum((d.positions[:, i] - c3d_short.positions[:, i]) ** 2, axis=1))))
 
     heavy, even, light = marker_rms(10.0), marker_rms(1.0), marker_rms(0.1)

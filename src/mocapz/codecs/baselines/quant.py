@@ -23,6 +23,7 @@ import numpy as np
 
 from mocapz.codecs import CodecInfo
 from mocapz.codecs.baselines.common import finish, gaps_bytes, gaps_from, layout_columns, values_of
+from mocapz.codecs.correction.wrap import corrected
 from mocapz.codecs.ratesearch import coarsest_meeting
 from mocapz.codecs.target import TARGET_OPTIONS, Target
 from mocapz.errors import FormatError
@@ -31,7 +32,7 @@ from mocapz.model.header import ClipHeader
 from mocapz.model.motion import AnyMotion, Motion
 from mocapz.model.skeleton import Skeleton
 
-VERSION = 1
+VERSION = 2  # 2: the correction layer (codecs/correction)
 OPTIONS = TARGET_OPTIONS  # max_error is the codec's own threshold (default: 1 mm); the others are searched
 SEARCH_STEPS = 48  # thresholds tried for a distortion / ARMS target: 2**-(i/2) of the cap, i < SEARCH_STEPS
 CODE_BIAS = 160  # step = 2 ** ((code - CODE_BIAS) / 8), code in 0..255 (steps 2^-20 .. 2^11.9)
@@ -207,7 +208,8 @@ def track_bits(sections: dict[str, bytes]) -> np.ndarray:
     return unpack_uint64(sections["bits"]).astype(np.int64)
 
 
-INFO = CodecInfo(name="quant", version=VERSION, kinds=("skeleton", "markers"), encode=encode, decode=decode,
+ENCODE, DECODE = corrected(encode, decode, "quant", OPTIONS)
+INFO = CodecInfo(name="quant", version=VERSION, kinds=("skeleton", "markers"), encode=ENCODE, decode=DECODE,
                  options=OPTIONS, summary="baseline: per-track uniform quantisation under a position error "
                                           "threshold, every frame kept (as ACL and game engines do)")
 
