@@ -114,8 +114,9 @@ def tolerances(t0: np.ndarray, lay: Layout, levels: np.ndarray) -> np.ndarray:
     return t0[None, :] * 2.0 ** (-levels[:, lay.group].astype(np.float64) / 2.0)
 
 
-def tighten(levels: np.ndarray, cap: np.ndarray, lay: Layout, misses: np.ndarray) -> bool:
-    """Raise (in place) by one the level of every group acting on a point that misses its bound.
+def tighten(levels: np.ndarray, cap: np.ndarray, lay: Layout, misses: np.ndarray, step: int = 1) -> bool:
+    """Raise (in place) by ``step`` (at most to ``cap``) the level of every group acting on a point that misses
+    its bound.
 
     Args:
         levels: ``(frames, groups)`` current levels; ``cap`` the safe levels, never exceeded.
@@ -124,9 +125,12 @@ def tighten(levels: np.ndarray, cap: np.ndarray, lay: Layout, misses: np.ndarray
     Returns:
         False if nothing could be raised (every missing point's chain is already at its safe level).
     """
-    hit = (misses.astype(np.float64) @ lay.acts.T.astype(np.float64)) > 0  # (frames, groups)
+    if lay.acts.shape[0] == lay.acts.shape[1] and np.array_equal(lay.acts, np.eye(lay.acts.shape[0], dtype=bool)):
+        hit = misses  # markers: each group is its own point
+    else:
+        hit = (misses.astype(np.float32) @ lay.acts.T.astype(np.float32)) > 0  # (frames, groups)
     raise_ = hit & (levels < cap)
-    levels[raise_] += 1
+    levels[raise_] = np.minimum(levels[raise_] + step, cap[raise_])
     return bool(raise_.any())
 
 

@@ -28,6 +28,9 @@ FOOT_RELAX = 0  # levels below the safe one on planted feet (0: the worst-case s
 WIDEN = 2  # frames tightened on each side of a miss
 VERIFY = 1.0 - 1e-6  # verified against the bound less a hair (the decoder's angle wrapping, float rounding)
 MAX_ROUNDS = 40  # verification rounds (each raises levels by one; the safe levels end it earlier)
+JITTER = 0.04  # added acceleration energy allowed (fraction of the original's), tightened beyond
+JITTER_UP_TO_CM = 2.0  # targets up to this bound keep the added jitter under JITTER
+JITTER_LEVELS = 8  # how far beyond the safe levels the jitter may tighten (2 ** 4 finer)
 
 
 def value_matrix(motion: AnyMotion) -> np.ndarray:
@@ -53,13 +56,15 @@ def lifting_levels(frame_rate: float) -> int:
 @dataclass
 class Correction:
     """One coded correction: ``sections`` (``c.*``), its ``size`` in bytes, the corrected positions
-    ``(frames, points, 3)`` and their figures."""
+    ``(frames, points, 3)``, their figures, the bound ``e`` it was made for and its added acceleration
+    energy (``jitter``, a fraction)."""
 
     sections: dict[str, bytes]
     size: int
     positions: np.ndarray
     errors: Errors
     bound: float
+    jitter: float = 0.0
 
 
 class Clip:
@@ -85,6 +90,12 @@ class Clip:
             self.contacts = find_contacts(motion, self.positions, self.valid, motion.unit_cm) if hold_feet else None
         self.body = body_height(self.positions, self.valid)
 
+    def smooth_up_to(self) -> float:
+        """The largest bound at which the added jitter is held under :data:`JITTER` (file units): 2 cm, or
+        1/85 of the body height when the unit is unknown. Looser targets get the model's own smoothness."""
+        unit = self.motion.unit_cm
+        return JITTER_UP_TO_CM / unit if unit else self.body / 85.0
+
     def foot_bound(self) -> float:
         unit = self.motion.unit_cm
         return FOOT_CM / unit if unit else 1.5e-3 * self.body
@@ -106,6 +117,34 @@ class Clip:
             half = self.period / 2
             r[:, self.rot] = np.mod(r[:, self.rot] + half, self.period) - half
         return np.nan_to_num(r, nan=0.0, posinf=0.0, neginf=0.0)
+
+    def jitter(self, pos: np.ndarray) -> tuple[float, np.ndarray]:
+        """Added acceleration energy of decoded positions ``(frames, points, 3)`` (sum over frames and points of
+        ``|second difference|^2``, decoded / original - 1) and ``(frames, points)`` True on the samples whose
+        excess energy, largest first, makes up what is over :data:`JITTER`."""
+        out = np.zeros(pos.shape[:2], dtype=bool)
+        if pos.shape[0] < 3:
+            return 0.0, out
+        ok = self.valid[2:] & self.valid[1:-1] & self.valid[:-2]
+        ea = np.where(ok, (np.diff(np.nan_to_num(self.positions), 2, axis=0) ** 2).sum(axis=2), 0.0)
+        eb = np.where(ok, (np.diff(np.nan_to_num(pos), 2, axis=0) ** 2).sum(axis=2), 0.0)
+        total = float(ea.sum())
+        if total <= 0:
+            return 0.0, out
+        jit = float(eb.sum()) / total - 1.0
+        if jit <= JITTER:
+            return jit, out
+        excess = (eb - ea).ravel()
+        order = np.argsort(-excess)
+        need = (jit - 0.5 * JITTER) * total  # bring it well under the limit
+        n = int(np.searchsorted(np.cumsum(np.maximum(excess[order], 0.0)), need)) + 1
+        hit = np.zeros(excess.size, dtype=bool)
+        hit[order[:n]] = True
+        hit = hit.reshape(eb.shape)
+        out[1:-1] |= hit  # the second difference centred on frame t + 1 involves t, t + 1, t + 2
+        out[:-2] |= hit
+        out[2:] |= hit
+        return jit, out
 
     def positions_of(self, values: np.ndarray) -> np.ndarray:
         """Positions ``(frames, points, 3)`` of decoded values ``(frames, columns)``."""
@@ -152,19 +191,27 @@ def fit(clip: Clip, base: np.ndarray, e: float) -> Correction:
     tighter = cap > bounds.safe_levels(lay, np.full_like(bound, e), e)
     levels = np.where(tighter, np.maximum(cap - FOOT_RELAX, 0), np.maximum(cap - relax, 0))
     valid = clip.valid
+    cap_jitter = cap + JITTER_LEVELS
+    jit = 0.0
     for _ in range(MAX_ROUNDS):
         q, y = lifting.quantise(x, bounds.tolerances(t0, lay, levels), clip.levels)
         pos = clip.positions_of(base + y)
         with np.errstate(invalid="ignore"):
             err = np.linalg.norm(pos - clip.positions, axis=2)
         misses = valid & ~(err <= bound * VERIFY)
+        limit, step = cap, 1
+        if not misses.any():  # every bound holds: then the added acceleration energy (targets up to 2 cm)
+            jit, misses = clip.jitter(pos) if e <= clip.smooth_up_to() else (0.0, misses)
+            limit, step = cap_jitter, 2
+            if jit <= JITTER:
+                break
         if WIDEN and misses.any():  # tighten a few frames around each miss: fewer level changes, smoother
             grown = misses.copy()
             for k in range(1, WIDEN + 1):
                 grown[k:] |= misses[:-k]
                 grown[:-k] |= misses[k:]
             misses = grown
-        if not misses.any() or not bounds.tighten(levels, cap, lay, misses):
+        if not bounds.tighten(levels, limit, lay, misses, step):
             break
     sections = {
         "c.codes": pack_uint64(codes.astype(np.uint64)),
@@ -172,7 +219,7 @@ def fit(clip: Clip, base: np.ndarray, e: float) -> Correction:
         "c.res": lifting.pack(q),
     }
     size = sum(len(v) + 8 for v in sections.values())
-    return Correction(sections, size, pos, clip.metric.of_positions(pos), e)
+    return Correction(sections, size, pos, clip.metric.of_positions(pos), e, jit)
 
 
 def search(clip: Clip, base: np.ndarray, target: Target) -> Correction:

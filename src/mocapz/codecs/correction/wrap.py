@@ -3,10 +3,11 @@
 :func:`corrected` turns a codec's ``encode`` / ``decode`` into ones that
 
 1. resolve the target (the user's, or the default one: max error 1 cm on every point, feet held);
-2. encode the clip with the codec's own model (its options, targets loosened by :data:`BASE_SLACK` when
-   ``base_options`` says how; a model that cannot reach even that is left out), decode it, and code the
-   residual with :func:`~mocapz.codecs.correction.fit.search` so that every bound holds on the decoded
-   result; the same is tried on a zero base (the correction alone) and the smaller file is kept;
+2. encode the clip with the codec's own model (its own or the user's settings; pga and patterns may run
+   their own search for a distortion / ARMS target, see ``base_options``; a model missing that falls back
+   to its settings), decode it, and code the residual with :func:`~mocapz.codecs.correction.fit.search`
+   so that every bound holds on the decoded result; the same is tried on a zero base (the correction
+   alone) and the smaller file is kept;
 3. refuse only a max-error target tighter than the source's own decimals.
 
 Sections: the model's own (untouched), plus ``c.head`` (layout version, base kind, lifting levels),
@@ -38,7 +39,6 @@ Decoder = Callable[[Sections, ClipHeader], AnyMotion]
 
 DEFAULT_ERROR_CM = 1.0  # the default target (codecs.target.DEFAULT_TARGET_TEXT); 1/170 of the body height
 # when the length unit is unknown
-BASE_SLACK = 3.0  # the model is asked for targets this many times looser; the correction does the rest
 FORMAT = 1
 BASE_NONE, BASE_MODEL = 0, 1
 
@@ -59,28 +59,16 @@ def default_error(motion: AnyMotion) -> float:
     return clip.body / 170.0
 
 
-def loosened(options: dict[str, Any], target: Target, slack: float) -> dict[str, Any]:
-    """The options with every target loosened ``slack`` times (file units)."""
-    out = {k: v for k, v in options.items() if k not in TARGET_NAMES and k != "hold_feet"}
-    if target.max_error is not None:
-        out["max_error"] = Length(target.max_error * slack)
-    if target.max_distortion is not None:
-        out["max_distortion"] = target.max_distortion * slack
-    if target.max_arms is not None:
-        out["max_arms"] = Length(target.max_arms * slack)
-    return out
-
-
-def strip_targets(options: dict[str, Any], target: Target) -> dict[str, Any]:
+def strip_targets(motion: AnyMotion, options: dict[str, Any], target: Target) -> dict[str, Any]:
     """The options without the targets: the model with its own settings (for models whose rate control cannot
     aim at a max error, or is slow)."""
     return {k: v for k, v in options.items() if k not in TARGET_NAMES and k != "hold_feet"}
 
 
-def native_targets(options: dict[str, Any], target: Target) -> dict[str, Any]:
+def native_targets(motion: AnyMotion, options: dict[str, Any], target: Target) -> dict[str, Any]:
     """The options with the distortion and ARMS targets as given and no max error (for models whose rate
     control aims at those two; the correction adds the max error and the feet)."""
-    out = strip_targets(options, target)
+    out = strip_targets(motion, options, target)
     if target.max_distortion is not None:
         out["max_distortion"] = target.max_distortion
     if target.max_arms is not None:
@@ -95,7 +83,7 @@ def given_settings(options: dict[str, Any], declared: tuple[Option, ...]) -> boo
 
 
 def corrected(encode: Encoder, decode: Decoder, codec: str, declared: tuple[Option, ...],
-              base_options: Callable[[dict[str, Any], Target], dict[str, Any]] | None = None,
+              base_options: Callable[[AnyMotion, dict[str, Any], Target], dict[str, Any]] | None = None,
               zero_base: bool = True) -> tuple[Encoder, Decoder]:
     """The codec's encoder and decoder with the correction layer (see the module docstring).
 
@@ -103,28 +91,27 @@ def corrected(encode: Encoder, decode: Decoder, codec: str, declared: tuple[Opti
         encode, decode: the model's.
         codec: its name (messages).
         declared: its option declarations (settings the user fixes are kept as given, and the model is used).
-        base_options: ``(options, target) -> options`` the model is encoded with when no setting is fixed
-            (default: the targets loosened :data:`BASE_SLACK` times).
+        base_options: ``(motion, options, target) -> options`` the model is encoded with (default: its own
+            settings, no target: a search of the model's settings costs more time than the correction does).
         zero_base: whether the correction alone (no model) may be chosen when it is smaller.
     """
     def enc(motion: AnyMotion, **options: Any) -> Sections:
         if motion.n_frames == 0 or motion.values.size == 0:  # nothing to be wrong about
-            return encode(motion, **strip_targets(options, Target()))
+            return encode(motion, **strip_targets(motion, options, Target()))
         target = resolve_target(motion, options)
         clip = Clip(motion, bool(options.get("hold_feet", True)))
         _refuse_below_precision(clip, target, codec)
         header = ClipHeader.of(motion)
         fixed = given_settings(options, declared)
-        # baselines search their one setting for a target, over the user's: fixed settings go without
-        make = base_options or (strip_targets if fixed else (lambda o, t: loosened(o, t, BASE_SLACK)))
+        make = base_options or strip_targets
         tried: list[tuple[int, int, Sections, Correction]] = []
         try:
-            base_sections = encode(motion, **make(options, target))
+            base_sections = encode(motion, **make(motion, options, target))
             base = value_matrix(decode(base_sections, header))
             tried.append((BASE_MODEL, _size(base_sections), base_sections, search(clip, base, target)))
         except TargetError:
             if fixed or not zero_base:
-                base_sections = encode(motion, **strip_targets(options, target))
+                base_sections = encode(motion, **strip_targets(motion, options, target))
                 base = value_matrix(decode(base_sections, header))
                 tried.append((BASE_MODEL, _size(base_sections), base_sections, search(clip, base, target)))
         if zero_base and not fixed:

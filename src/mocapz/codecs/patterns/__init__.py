@@ -7,15 +7,29 @@ normalisation, adaptive K-means pattern databases, pattern-index coding, boundar
 
 from __future__ import annotations
 
+from typing import Any
+
 from mocapz.codecs import CodecInfo
-from mocapz.codecs.correction.wrap import corrected, native_targets
+from mocapz.codecs.correction.wrap import corrected, given_settings, native_targets, strip_targets
 from mocapz.codecs.patterns.decode import decode
 from mocapz.codecs.patterns.encode import encode
 from mocapz.codecs.patterns.options import OPTIONS
+from mocapz.codecs.target import Target
+from mocapz.model.motion import AnyMotion
 
 VERSION = 2  # 2: the correction layer (codecs/correction)
 
-ENCODE, DECODE = corrected(encode, decode, "patterns", OPTIONS, native_targets)
+
+
+def _base_options(motion: AnyMotion, options: dict[str, Any], target: Target) -> dict[str, Any]:
+    """The model's own search for a distortion / ARMS target when the user fixed some of its settings (the
+    search takes minutes on marker clips), else its default settings: the correction meets the targets."""
+    if given_settings(options, OPTIONS):
+        return native_targets(motion, options, target)
+    return strip_targets(motion, options, target)
+
+
+ENCODE, DECODE = corrected(encode, decode, "patterns", OPTIONS, _base_options)
 
 INFO = CodecInfo(
     name="patterns",
