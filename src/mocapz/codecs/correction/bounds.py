@@ -114,6 +114,13 @@ def tolerances(t0: np.ndarray, lay: Layout, levels: np.ndarray) -> np.ndarray:
     return t0[None, :] * 2.0 ** (-levels[:, lay.group].astype(np.float64) / 2.0)
 
 
+def groups_moving(lay: Layout, points: np.ndarray) -> np.ndarray:
+    """``(frames, groups)`` True where a group moves one of the ``(frames, points)`` True points."""
+    if lay.acts.shape[0] == lay.acts.shape[1] and np.array_equal(lay.acts, np.eye(lay.acts.shape[0], dtype=bool)):
+        return points.copy()  # markers: each group is its own point
+    return (points.astype(np.float32) @ lay.acts.T.astype(np.float32)) > 0
+
+
 def tighten(levels: np.ndarray, cap: np.ndarray, lay: Layout, misses: np.ndarray, step: int = 1) -> bool:
     """Raise (in place) by ``step`` (at most to ``cap``) the level of every group acting on a point that misses
     its bound.
@@ -125,11 +132,7 @@ def tighten(levels: np.ndarray, cap: np.ndarray, lay: Layout, misses: np.ndarray
     Returns:
         False if nothing could be raised (every missing point's chain is already at its safe level).
     """
-    if lay.acts.shape[0] == lay.acts.shape[1] and np.array_equal(lay.acts, np.eye(lay.acts.shape[0], dtype=bool)):
-        hit = misses  # markers: each group is its own point
-    else:
-        hit = (misses.astype(np.float32) @ lay.acts.T.astype(np.float32)) > 0  # (frames, groups)
-    raise_ = hit & (levels < cap)
+    raise_ = groups_moving(lay, misses) & (levels < cap)
     levels[raise_] = np.minimum(levels[raise_] + step, cap[raise_])
     return bool(raise_.any())
 

@@ -100,14 +100,16 @@ class Clip:
         unit = self.motion.unit_cm
         return FOOT_CM / unit if unit else 1.5e-3 * self.body
 
+    def held(self) -> np.ndarray:
+        """``(frames, points)`` True on the planted feet's contact frames."""
+        out = np.zeros(self.positions.shape[:2], dtype=bool)
+        if self.contacts is not None and self.contacts.feet.size:
+            out[:, self.contacts.feet] = self.contacts.frames()
+        return out
+
     def point_bounds(self, e: float) -> np.ndarray:
         """``(frames, points)`` position bounds: ``e``, tighter on planted feet."""
-        b = np.full(self.positions.shape[:2], e)
-        if self.contacts is not None and self.contacts.feet.size:
-            held = self.contacts.frames()
-            for i, p in enumerate(self.contacts.feet):
-                b[held[:, i], p] = min(e, self.foot_bound())
-        return b
+        return np.where(self.held(), min(e, self.foot_bound()), e)
 
     def residual(self, base: np.ndarray) -> np.ndarray:
         """``(frames, columns)`` original minus decoded values (angles wrapped to the nearest turn; 0 where a
@@ -187,8 +189,8 @@ def fit(clip: Clip, base: np.ndarray, e: float) -> Correction:
     bound = clip.point_bounds(e)
     cap = bounds.safe_levels(lay, bound, e)
     relax = int(math.ceil(2 * math.log2(bounds.RELAX)))
-    # relaxed where the bound is e, at the safe level where it is tighter (planted feet: no trembling)
-    tighter = cap > bounds.safe_levels(lay, np.full_like(bound, e), e)
+    # relaxed, but at the safe level on the chains of planted feet (no trembling)
+    tighter = bounds.groups_moving(lay, clip.held())
     levels = np.where(tighter, np.maximum(cap - FOOT_RELAX, 0), np.maximum(cap - relax, 0))
     valid = clip.valid
     cap_jitter = cap + JITTER_LEVELS
