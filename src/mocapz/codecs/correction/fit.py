@@ -28,7 +28,8 @@ FOOT_RELAX = 0  # levels below the safe one on planted feet (0: the worst-case s
 WIDEN = 2  # frames tightened on each side of a miss
 VERIFY = 1.0 - 1e-6  # verified against the bound less a hair (the decoder's angle wrapping, float rounding)
 MAX_ROUNDS = 40  # verification rounds (each raises levels by one; the safe levels end it earlier)
-JITTER = 0.04  # added acceleration energy allowed (fraction of the original's), tightened beyond
+SEARCH_FITS = 10
+JITTER = 0.045  # added acceleration energy allowed (fraction of the original's), tightened beyond
 JITTER_UP_TO_CM = 2.0  # targets up to this bound keep the added jitter under JITTER
 JITTER_LEVELS = 8  # how far beyond the safe levels the jitter may tighten (2 ** 4 finer)
 
@@ -225,8 +226,9 @@ def fit(clip: Clip, base: np.ndarray, e: float) -> Correction:
 
 
 def search(clip: Clip, base: np.ndarray, target: Target) -> Correction:
-    """The correction with the largest bound meeting ``target`` (the bound is at most ``max_error``; a
-    distortion or ARMS target lowers it until met, in steps of 2 ** (1/2) at most 12 times)."""
+    """The correction with the largest bound meeting ``target`` (the bound is at most ``max_error``; for a
+    distortion or ARMS target, secant steps in log space inside the bracket of met and missed bounds, at most
+    :data:`SEARCH_FITS` fits)."""
     e_cap = target.max_error
     if target.max_distortion is None and target.max_arms is None:
         assert e_cap is not None
@@ -244,22 +246,26 @@ def search(clip: Clip, base: np.ndarray, target: Target) -> Correction:
     if target.met(base_errors) and base_errors.max_error > 0:  # the model alone meets it: hold feet, bound the rest
         guesses = [base_errors.max_error * 1.001]
     e = min(guesses + ([e_cap] if e_cap is not None else []))
-    best: Correction | None = None
+    best: Correction | None = None  # the largest bound met so far
+    low_fail = math.inf  # the smallest bound missed so far
     cur = fit(clip, base, e)
-    if target.met(cur.errors):  # grow while met
-        best = cur
-        for _ in range(6):
-            if e_cap is not None and e >= e_cap:
-                break
-            e = min(e * 2.0**0.5, e_cap) if e_cap is not None else e * 2.0**0.5
-            cur = fit(clip, base, e)
-            if not target.met(cur.errors):
-                break
-            best = cur
-        return best
-    for _ in range(12):  # shrink until met
-        e /= 2.0**0.5
-        cur = fit(clip, base, e)
-        if target.met(cur.errors):
-            return cur
+    for _ in range(SEARCH_FITS):
+        score = target.score(cur.errors)
+        if score <= 1:
+            best = cur if best is None or cur.bound > best.bound else best
+        else:
+            low_fail = min(low_fail, cur.bound)
+        # secant in log space (the figures grow about linearly with the bound), kept inside the bracket
+        nxt = cur.bound * float(np.clip(0.95 / max(score, 1e-9), 0.25, 4.0))
+        if e_cap is not None:
+            nxt = min(nxt, e_cap)
+        lo = best.bound if best is not None else 0.0
+        if not lo < nxt < low_fail:
+            nxt = math.sqrt(lo * low_fail) if lo > 0 and math.isfinite(low_fail) else (
+                lo * 2.0 if lo > 0 else low_fail / 2.0)
+        if (best is not None and (nxt <= best.bound * 1.08 or (e_cap is not None and best.bound >= e_cap)))\
+                or (math.isfinite(low_fail) and nxt >= low_fail / 1.08 and best is not None):
+            break
+        cur = fit(clip, base, nxt)
+    return best if best is not None else cur
     return cur
