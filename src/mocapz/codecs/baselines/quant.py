@@ -10,8 +10,11 @@ range reduced (minus their minimum, stored as a varint); their range gives the t
 a constant track). The samples of every non-constant track are stored as time differences, **entropy
 coded** with the range coder of :mod:`mocapz.format.entropy` (block-adaptive Laplace models).
 
-Options: ``max_error``: position error threshold, file units or with a unit (``"1cm"``, ``"4mm"``);
-default 1 mm when the file's unit is known, else 1/1000 of the clip's bounding-box diagonal.
+The model alone (:func:`encode` / :func:`decode`): ``max_error`` is its position error threshold, file
+units or with a unit (``"1cm"``, ``"4mm"``); default 1 mm when the file's unit is known, else 1/1000 of
+the clip's bounding-box diagonal. The registered codec (``INFO``) wraps it in the correction layer
+(:mod:`mocapz.codecs.correction`), which meets the targets and keeps whichever of the model or the
+correction alone is smaller.
 """
 
 from __future__ import annotations
