@@ -121,7 +121,7 @@ def test_failures_are_recorded(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) 
     slow = CodecInfo("slow", 1, ("skeleton", "markers"), _slow_encode, lossless.decode, {})
     monkeypatch.setitem(_REGISTRY, "broken", lambda: broken)
     monkeypatch.setitem(_REGISTRY, "slow", lambda: slow)
-    doc = run_bench([data_path(SHORT)], ["broken", "slow", "quant"], quick=True, timeout=0.5, progress=False)
+    doc = run_bench([data_path(SHORT)], ["broken", "slow", "quant"], quick=True, timeout=3.0, progress=False)
     bad = {r["codec"]: r for r in doc["records"] if r["status"] == "failed"}
     assert set(bad) == {"broken", "slow"}
     assert bad["broken"]["error"] == "RuntimeError: this codec always fails"

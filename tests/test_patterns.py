@@ -167,8 +167,9 @@ def test_standard_marker_hierarchy(c3d_short: MarkerMotion) -> None:
 
 # ------------------------------------------------------------------ end to end
 def test_markers_round_trip_keeps_gaps_and_is_deterministic(c3d_short: MarkerMotion) -> None:
-    a = compress(c3d_short, codec="patterns", bits=3, tolerance=0.05)
-    assert a == compress(c3d_short, codec="patterns", bits=3, tolerance=0.05)
+    loose = {"max_error": "1m", "hold_feet": False}  # the model's own errors (the default target corrects them)
+    a = compress(c3d_short, codec="patterns", bits=3, tolerance=0.05, **loose)
+    assert a == compress(c3d_short, codec="patterns", bits=3, tolerance=0.05, **loose)
     dec = decompress(a)
     assert dec.labels == c3d_short.labels
     assert np.array_equal(dec.missing, c3d_short.missing) and c3d_short.missing.any()
@@ -190,7 +191,8 @@ def test_heavier_marker_is_reconstructed_more_accurately(c3d_short: MarkerMotion
     i = c3d_short.labels.index("LSHO")
 
     def marker_rms(weight: float) -> float:
-        d = decompress(compress(c3d_short, codec="patterns", bits=3, tolerance=0.05, weights={"LSHO": weight}))
+        d = decompress(compress(c3d_short, codec="patterns", bits=3, tolerance=0.05, weights={"LSHO": weight},
+                                max_error="1m", hold_feet=False))  # a loose target: the model's errors
         return float(np.sqrt(np.nanmean(np.sum((d.positions[:, i] - c3d_short.positions[:, i]) ** 2, axis=1))))
 
     heavy, even, light = marker_rms(10.0), marker_rms(1.0), marker_rms(0.1)

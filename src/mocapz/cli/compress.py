@@ -31,6 +31,7 @@ from mocapz.cli.common import (
     with_unit,
 )
 from mocapz.cli.outputs import check_outputs, write_output
+from mocapz.codecs.target import DEFAULT_TARGET, TARGET_NAMES
 from mocapz.errors import MocapzError, OptionError
 from mocapz.files import STDIN_NAME, compressed_name, load_bytes, sniff
 from mocapz.format.container import Container
@@ -125,10 +126,13 @@ def _one(path: Path, out: Path, codec: str, options: dict[str, Any], asf: Path |
         motion = load(path, asf) if asf else load(path)
         source_bytes = path.stat().st_size
     motion = with_unit(cut(motion, frame_slice(*rng, motion.frame_rate, motion.n_frames)), unit)
+    info = get_codec(codec)
+    if info.lossy and not any(options.get(n) is not None for n in TARGET_NAMES):
+        say.info(f"{name}: no target given, the {codec} codec meets its default target: {DEFAULT_TARGET}")
     t0 = time.perf_counter()
     with say.progress(f"{name}: {codec}, {motion.n_frames} frames"):
         try:
-            data = compress_checked(motion, get_codec(codec), options)
+            data = compress_checked(motion, info, options)
         except OptionError as exc:  # the options were checked: this one is about the file (exit code 1)
             raise MocapzError(exc.message, path=exc.path or name) from None
         except MocapzError as exc:

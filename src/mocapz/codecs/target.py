@@ -25,16 +25,23 @@ from mocapz.metrics.figures import arms, distortion_pct, point_errors
 from mocapz.model.kinematics import forward_kinematics
 from mocapz.model.motion import AnyMotion, MarkerMotion, Motion
 
-#: the target options, declared once and listed by every lossy codec
+#: what a lossy codec meets when no target is given (codecs/correction)
+DEFAULT_TARGET = "max error 1 cm on every joint, end site and marker of every frame, planted feet held " \
+                 "(1/170 of the body height when the length unit is unknown)"
+DEFAULT_TARGET_TEXT = f"none given: the default target, {DEFAULT_TARGET}"
+
+#: the target options, declared once and listed by every lossy codec (then ``hold_feet``)
 TARGET_OPTIONS: tuple[Option, ...] = (
     Option("max_error", "length", "target: largest position error of any joint, end site or marker in any frame",
-           low=0.0, low_open=True),
+           low=0.0, low_open=True, default_text=DEFAULT_TARGET_TEXT),
     Option("max_distortion", "percent", "target: largest global distortion_pct (METRICS.md)", low=0.0,
            low_open=True),
     Option("max_arms", "length", "target: largest ARMS (mean over frames of the RMS error over points)", low=0.0,
            low_open=True),
+    Option("hold_feet", "bool", "keep planted feet still: on the original's foot contacts (METRICS.md) the feet get "
+           "a 2.5 mm bound, met by the worst-case sum of their chain's errors", default=True),
 )
-TARGET_NAMES = tuple(o.name for o in TARGET_OPTIONS)
+TARGET_NAMES = ("max_error", "max_distortion", "max_arms")
 
 
 @dataclass(frozen=True)

@@ -29,6 +29,7 @@ from mocapz.codecs.baselines.common import (
     uvarints,
     values_of,
 )
+from mocapz.codecs.correction.wrap import corrected
 from mocapz.codecs.options import Option
 from mocapz.codecs.ratesearch import check_target, coarsest_meeting
 from mocapz.codecs.target import TARGET_OPTIONS, Target
@@ -36,7 +37,7 @@ from mocapz.errors import FormatError
 from mocapz.model.header import ClipHeader
 from mocapz.model.motion import AnyMotion, Motion
 
-VERSION = 1
+VERSION = 2  # 2: the correction layer (codecs/correction)
 DEFAULT_VARIANCE = 0.95
 OPTIONS: tuple[Option, ...] = TARGET_OPTIONS + (
     Option("variance", "float", "fraction of the variance kept", low=0.0, high=1.0, low_open=True,
@@ -141,5 +142,6 @@ def decode(sections: dict[str, bytes], header: ClipHeader) -> AnyMotion:
     return finish(header, y / column_scale(header), gaps_from(sections, header), round_decimals=True)
 
 
-INFO = CodecInfo(name="pca", version=VERSION, kinds=("skeleton", "markers"), encode=encode, decode=decode,
+ENCODE, DECODE = corrected(encode, decode, "pca", OPTIONS)
+INFO = CodecInfo(name="pca", version=VERSION, kinds=("skeleton", "markers"), encode=ENCODE, decode=DECODE,
                  options=OPTIONS, summary="baseline: one PCA of the whole clip (the pattern paper's Fig. 9)")

@@ -10,8 +10,11 @@ range reduced (minus their minimum, stored as a varint); their range gives the t
 a constant track). The samples of every non-constant track are stored as time differences, **entropy
 coded** with the range coder of :mod:`mocapz.format.entropy` (block-adaptive Laplace models).
 
-Options: ``max_error``: position error threshold, file units or with a unit (``"1cm"``, ``"4mm"``);
-default 1 mm when the file's unit is known, else 1/1000 of the clip's bounding-box diagonal.
+The model alone (:func:`encode` / :func:`decode`): ``max_error`` is its position error threshold, file
+units or with a unit (``"1cm"``, ``"4mm"``); default 1 mm when the file's unit is known, else 1/1000 of
+the clip's bounding-box diagonal. The registered codec (``INFO``) wraps it in the correction layer
+(:mod:`mocapz.codecs.correction`), which meets the targets and keeps whichever of the model or the
+correction alone is smaller.
 """
 
 from __future__ import annotations
@@ -23,6 +26,7 @@ import numpy as np
 
 from mocapz.codecs import CodecInfo
 from mocapz.codecs.baselines.common import finish, gaps_bytes, gaps_from, layout_columns, values_of
+from mocapz.codecs.correction.wrap import corrected
 from mocapz.codecs.ratesearch import coarsest_meeting
 from mocapz.codecs.target import TARGET_OPTIONS, Target
 from mocapz.errors import FormatError
@@ -31,7 +35,7 @@ from mocapz.model.header import ClipHeader
 from mocapz.model.motion import AnyMotion, Motion
 from mocapz.model.skeleton import Skeleton
 
-VERSION = 1
+VERSION = 2  # 2: the correction layer (codecs/correction)
 OPTIONS = TARGET_OPTIONS  # max_error is the codec's own threshold (default: 1 mm); the others are searched
 SEARCH_STEPS = 48  # thresholds tried for a distortion / ARMS target: 2**-(i/2) of the cap, i < SEARCH_STEPS
 CODE_BIAS = 160  # step = 2 ** ((code - CODE_BIAS) / 8), code in 0..255 (steps 2^-20 .. 2^11.9)
@@ -207,7 +211,8 @@ def track_bits(sections: dict[str, bytes]) -> np.ndarray:
     return unpack_uint64(sections["bits"]).astype(np.int64)
 
 
-INFO = CodecInfo(name="quant", version=VERSION, kinds=("skeleton", "markers"), encode=encode, decode=decode,
+ENCODE, DECODE = corrected(encode, decode, "quant", OPTIONS)
+INFO = CodecInfo(name="quant", version=VERSION, kinds=("skeleton", "markers"), encode=ENCODE, decode=DECODE,
                  options=OPTIONS, summary="baseline: per-track uniform quantisation under a position error "
                                           "threshold, every frame kept (as ACL and game engines do)")
 

@@ -35,6 +35,7 @@ from mocapz.codecs.baselines.common import (
 )
 from mocapz.codecs.baselines.pca import column_scale, components_for, fit, scale_of
 from mocapz.codecs.baselines.subsample import interpolate, key_frames
+from mocapz.codecs.correction.wrap import corrected
 from mocapz.codecs.options import Option
 from mocapz.codecs.ratesearch import check_target, coarsest_meeting
 from mocapz.codecs.target import TARGET_OPTIONS, Target
@@ -42,7 +43,7 @@ from mocapz.errors import FormatError, OptionError
 from mocapz.model.header import ClipHeader
 from mocapz.model.motion import AnyMotion
 
-VERSION = 1
+VERSION = 2  # 2: the correction layer (codecs/correction)
 OPTIONS: tuple[Option, ...] = TARGET_OPTIONS + (
     Option("variance", "float", "fraction of each segment's variance kept", low=0.0, high=1.0, low_open=True,
            default=0.99),
@@ -155,5 +156,6 @@ def decode(sections: dict[str, bytes], header: ClipHeader) -> AnyMotion:
     return finish(header, y / column_scale(header), gaps_from(sections, header), round_decimals=True)
 
 
-INFO = CodecInfo(name="segpca", version=VERSION, kinds=("skeleton", "markers"), encode=encode, decode=decode,
+ENCODE, DECODE = corrected(encode, decode, "segpca", OPTIONS)
+INFO = CodecInfo(name="segpca", version=VERSION, kinds=("skeleton", "markers"), encode=ENCODE, decode=DECODE,
                  options=OPTIONS, summary="baseline: PCA per segment, key-frame coefficients (Liu & McMillan 2006)")

@@ -27,6 +27,7 @@ from mocapz.codecs.baselines.common import (
     uvarints,
     values_of,
 )
+from mocapz.codecs.correction.wrap import corrected
 from mocapz.codecs.options import Option
 from mocapz.codecs.ratesearch import check_target, coarsest_meeting
 from mocapz.codecs.target import TARGET_OPTIONS, Target
@@ -34,7 +35,7 @@ from mocapz.errors import FormatError
 from mocapz.model.header import ClipHeader
 from mocapz.model.motion import AnyMotion
 
-VERSION = 1
+VERSION = 2  # 2: the correction layer (codecs/correction)
 DEFAULT_FACTOR = 4
 MAX_SEARCHED_FACTOR = 256
 OPTIONS: tuple[Option, ...] = TARGET_OPTIONS + (
@@ -102,6 +103,7 @@ def decode(sections: dict[str, bytes], header: ClipHeader) -> AnyMotion:
     return finish(header, x, gaps_from(sections, header), round_decimals=True)
 
 
-INFO = CodecInfo(name="subsample", version=VERSION, kinds=("skeleton", "markers"), encode=encode,
-                 decode=decode, options=OPTIONS,
+ENCODE, DECODE = corrected(encode, decode, "subsample", OPTIONS)
+INFO = CodecInfo(name="subsample", version=VERSION, kinds=("skeleton", "markers"), encode=ENCODE,
+                 decode=DECODE, options=OPTIONS,
                  summary="baseline: every N-th frame kept, cubic spline in between (the pattern paper's Fig. 9)")

@@ -6,19 +6,36 @@ geodesic coordinates as the IK's warm start, outlier frames coded apart, and rat
 
 from __future__ import annotations
 
+from typing import Any
+
 from mocapz.codecs import CodecInfo
+from mocapz.codecs.correction.wrap import corrected, native_targets, strip_targets
 from mocapz.codecs.pga.decode import decode
 from mocapz.codecs.pga.options import OPTIONS
 from mocapz.codecs.pga.ratecontrol import encode
+from mocapz.codecs.target import Target
+from mocapz.model.motion import Motion
 
-VERSION = 1
+VERSION = 2  # 2: the correction layer (codecs/correction)
+
+SEARCH_FRAMES = 300  # longer clips: the model at its own settings (its search takes minutes), then the correction
+
+
+def _base_options(motion: Motion, options: dict[str, Any], target: Target) -> dict[str, Any]:
+    """PGA's own rate control for a distortion / ARMS target on short clips, its default settings else."""
+    if motion.n_frames <= SEARCH_FRAMES:
+        return native_targets(motion, options, target)
+    return strip_targets(motion, options, target)
+
+
+ENCODE, DECODE = corrected(encode, decode, "pga", OPTIONS, _base_options, zero_base=False)
 
 INFO = CodecInfo(
     name="pga",
     version=VERSION,
     kinds=("skeleton",),
-    encode=encode,
-    decode=decode,
+    encode=ENCODE,
+    decode=DECODE,
     options=OPTIONS,
     summary="skeletal clips: Tournier et al.'s PGA pose model, multiscale trajectories, PGA-based IK decoding",
 )

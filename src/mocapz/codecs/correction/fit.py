@@ -1,0 +1,271 @@
+"""The encoder side of the correction layer: the residual between a model's decoded values and the original,
+coded so that every point of every frame meets its position bound, verified by forward kinematics.
+
+:class:`Clip` holds what does not depend on the model (original values and positions, the layout, the foot
+contacts); :func:`fit` codes the residual of one decoded base for one position bound ``E`` and returns the
+correction (its sections and the corrected positions); :func:`search` finds the largest ``E`` that also
+meets a distortion or ARMS target.
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+from dataclasses import dataclass
+
+import numpy as np
+
+from mocapz.codecs.correction import bounds, lifting
+from mocapz.codecs.target import ErrorMetric, Errors, Target
+from mocapz.format.entropy import encode_int_matrix, pack_uint64
+from mocapz.metrics.contacts import find_contacts
+from mocapz.model.kinematics import forward_kinematics
+from mocapz.model.motion import AnyMotion, Motion
+
+FOOT_CM = 0.25  # bound on a planted foot (centimetres; 0.15 % of the body height when the unit is unknown)
+FOOT_RELAX = 0  # levels below the safe one on planted feet (0: the worst-case sum holds, no trembling)
+ # bound on a planted foot (centimetres; 0.15 % of the body height when the unit is unknown)
+WIDEN = 2  # frames tightened on each side of a miss
+VERIFY = 1.0 - 1e-6  # verified against the bound less a hair (the decoder's angle wrapping, float rounding)
+MAX_ROUNDS = 40  # verification rounds (each raises levels by one; the safe levels end it earlier)
+SEARCH_FITS = 10
+JITTER = 0.045  # added acceleration energy allowed (fraction of the original's), tightened beyond
+JITTER_UP_TO_CM = 2.0  # targets up to this bound keep the added jitter under JITTER
+JITTER_LEVELS = 8  # how far beyond the safe levels the jitter may tighten (2 ** 4 finer)
+
+
+def value_matrix(motion: AnyMotion) -> np.ndarray:
+    """The values the correction works on: ``(frames, columns)`` channels or marker coordinates (NaN gaps)."""
+    if isinstance(motion, Motion):
+        return np.asarray(motion.channels, dtype=np.float64)
+    return motion.positions.reshape(motion.n_frames, 3 * motion.n_markers)
+
+
+def rotation_period(motion: AnyMotion) -> tuple[np.ndarray, float]:
+    """``(columns,)`` rotation mask and the full turn in the angle unit (markers: none, 0)."""
+    if isinstance(motion, Motion):
+        sk = motion.skeleton
+        return sk.rotation_columns(), (360.0 if sk.angle_unit == "deg" else 2 * math.pi)
+    return np.zeros(3 * motion.n_markers, dtype=bool), 0.0
+
+
+def lifting_levels(frame_rate: float) -> int:
+    """Lifting levels for a frame rate: coarse knots about a quarter of a second apart (1 to 6 levels)."""
+    return int(min(6, max(1, round(math.log2(max(frame_rate, 2.0) / 4.0)))))
+
+
+@dataclass
+class Correction:
+    """One coded correction: ``sections`` (``c.*``), its ``size`` in bytes, the corrected positions
+    ``(frames, points, 3)``, their figures, the bound ``e`` it was made for and its added acceleration
+    energy (``jitter``, a fraction)."""
+
+    sections: dict[str, bytes]
+    size: int
+    positions: np.ndarray
+    errors: Errors
+    bound: float
+    jitter: float = 0.0
+
+
+class Clip:
+    """The original clip as the correction sees it.
+
+    Args:
+        motion: the original.
+        hold_feet: keep planted feet within :data:`FOOT_CM` on their contact frames.
+    """
+
+    def __init__(self, motion: AnyMotion, hold_feet: bool) -> None:
+        self.motion = motion
+        self.metric = ErrorMetric(motion)
+        self.positions = self.metric.positions
+        self.valid = np.ones(self.positions.shape[:2], dtype=bool) if self.metric.valid is None \
+            else self.metric.valid
+        self.values = value_matrix(motion)
+        self.rot, self.period = rotation_period(motion)
+        self.layout = bounds.layout(motion, self.positions)
+        self.levels = lifting_levels(motion.frame_rate)
+        with warnings.catch_warnings():  # markers missing in every frame
+            warnings.simplefilter("ignore", RuntimeWarning)
+            self.contacts = find_contacts(motion, self.positions, self.valid, motion.unit_cm) if hold_feet else None
+        self.body = body_height(self.positions, self.valid)
+
+    def smooth_up_to(self) -> float:
+        """The largest bound at which the added jitter is held under :data:`JITTER` (file units): 2 cm, or
+        1/85 of the body height when the unit is unknown. Looser targets get the model's own smoothness."""
+        unit = self.motion.unit_cm
+        return JITTER_UP_TO_CM / unit if unit else self.body / 85.0
+
+    def foot_bound(self) -> float:
+        unit = self.motion.unit_cm
+        return FOOT_CM / unit if unit else 1.5e-3 * self.body
+
+    def held(self) -> np.ndarray:
+        """``(frames, points)`` True on the planted feet's contact frames."""
+        out = np.zeros(self.positions.shape[:2], dtype=bool)
+        if self.contacts is not None and self.contacts.feet.size:
+            out[:, self.contacts.feet] = self.contacts.frames()
+        return out
+
+    def point_bounds(self, e: float) -> np.ndarray:
+        """``(frames, points)`` position bounds: ``e``, tighter on planted feet."""
+        return np.where(self.held(), min(e, self.foot_bound()), e)
+
+    def residual(self, base: np.ndarray) -> np.ndarray:
+        """``(frames, columns)`` original minus decoded values (angles wrapped to the nearest turn; 0 where a
+        sample is missing)."""
+        r = self.values - base
+        if self.rot.any():
+            half = self.period / 2
+            r[:, self.rot] = np.mod(r[:, self.rot] + half, self.period) - half
+        return np.nan_to_num(r, nan=0.0, posinf=0.0, neginf=0.0)
+
+    def jitter(self, pos: np.ndarray) -> tuple[float, np.ndarray]:
+        """Added acceleration energy of decoded positions ``(frames, points, 3)`` (sum over frames and points of
+        ``|second difference|^2``, decoded / original - 1) and ``(frames, points)`` True on the samples whose
+        excess energy, largest first, makes up what is over :data:`JITTER`."""
+        out = np.zeros(pos.shape[:2], dtype=bool)
+        if pos.shape[0] < 3:
+            return 0.0, out
+        ok = self.valid[2:] & self.valid[1:-1] & self.valid[:-2]
+        ea = np.where(ok, (np.diff(np.nan_to_num(self.positions), 2, axis=0) ** 2).sum(axis=2), 0.0)
+        eb = np.where(ok, (np.diff(np.nan_to_num(pos), 2, axis=0) ** 2).sum(axis=2), 0.0)
+        total = float(ea.sum())
+        if total <= 0:
+            return 0.0, out
+        jit = float(eb.sum()) / total - 1.0
+        if jit <= JITTER:
+            return jit, out
+        excess = (eb - ea).ravel()
+        order = np.argsort(-excess)
+        need = (jit - 0.5 * JITTER) * total  # bring it well under the limit
+        n = int(np.searchsorted(np.cumsum(np.maximum(excess[order], 0.0)), need)) + 1
+        hit = np.zeros(excess.size, dtype=bool)
+        hit[order[:n]] = True
+        hit = hit.reshape(eb.shape)
+        out[1:-1] |= hit  # the second difference centred on frame t + 1 involves t, t + 1, t + 2
+        out[:-2] |= hit
+        out[2:] |= hit
+        return jit, out
+
+    def positions_of(self, values: np.ndarray) -> np.ndarray:
+        """Positions ``(frames, points, 3)`` of decoded values ``(frames, columns)``."""
+        if isinstance(self.motion, Motion):
+            return forward_kinematics(self.motion.skeleton, values)[0]
+        return values.reshape(self.positions.shape)
+
+    def precision_floor(self) -> float:
+        """The largest position error the source's own decimals allow (file units; 0 when unknown)."""
+        dec = self.motion.decimals
+        if dec is None or not np.size(dec):
+            return 0.0
+        quantum = 0.5 * 10.0 ** -float(np.max(dec))  # the file's finest decimals: its precision
+        # quantum / t_safe is the position error one column's rounding can cause (worst-case share)
+        t_safe = self.layout.t_safe[self.layout.moving]
+        per_col = np.where(np.isfinite(t_safe), quantum / t_safe * bounds.SAFETY, 0.0)
+        return float(per_col.max(initial=0.0))
+
+
+def body_height(a: np.ndarray, valid: np.ndarray) -> float:
+    """Median over frames of the body's largest extent (file units; 1 for an empty clip)."""
+    if not a.size:
+        return 1.0
+    big = np.where(valid[..., None], a, np.nan)
+    with np.errstate(invalid="ignore"):
+        ext = np.nanmax(np.nanmax(big, axis=1) - np.nanmin(big, axis=1), axis=1)
+    h = float(np.nanmedian(ext)) if np.isfinite(ext).any() else 1.0
+    return h if h > 0 else 1.0
+
+
+def fit(clip: Clip, base: np.ndarray, e: float) -> Correction:
+    """Code the residual of decoded base values ``(frames, columns)`` so that every point is within ``e``
+    (file units; planted feet within the foot bound), verified on the corrected positions."""
+    lay = clip.layout
+    x = clip.residual(base)
+    t0 = bounds.RELAX * lay.t_safe * e
+    t0 = np.where(lay.moving, t0, bounds.RELAX * bounds.TINY * lay.t_safe * e)
+    codes = bounds.code_for(t0)
+    t0 = bounds.tol_of(codes)
+    bound = clip.point_bounds(e)
+    cap = bounds.safe_levels(lay, bound, e)
+    relax = int(math.ceil(2 * math.log2(bounds.RELAX)))
+    # relaxed, but at the safe level on the chains of planted feet (no trembling)
+    tighter = bounds.groups_moving(lay, clip.held())
+    levels = np.where(tighter, np.maximum(cap - FOOT_RELAX, 0), np.maximum(cap - relax, 0))
+    valid = clip.valid
+    cap_jitter = cap + JITTER_LEVELS
+    jit = 0.0
+    for _ in range(MAX_ROUNDS):
+        q, y = lifting.quantise(x, bounds.tolerances(t0, lay, levels), clip.levels)
+        pos = clip.positions_of(base + y)
+        with np.errstate(invalid="ignore"):
+            err = np.linalg.norm(pos - clip.positions, axis=2)
+        misses = valid & ~(err <= bound * VERIFY)
+        limit, step = cap, 1
+        if not misses.any():  # every bound holds: then the added acceleration energy (targets up to 2 cm)
+            jit, misses = clip.jitter(pos) if e <= clip.smooth_up_to() else (0.0, misses)
+            limit, step = cap_jitter, 2
+            if jit <= JITTER:
+                break
+        if WIDEN and misses.any():  # tighten a few frames around each miss: fewer level changes, smoother
+            grown = misses.copy()
+            for k in range(1, WIDEN + 1):
+                grown[k:] |= misses[:-k]
+                grown[:-k] |= misses[k:]
+            misses = grown
+        if not bounds.tighten(levels, limit, lay, misses, step):
+            break
+    sections = {
+        "c.codes": pack_uint64(codes.astype(np.uint64)),
+        "c.levels": encode_int_matrix(np.diff(levels, axis=0, prepend=0)),
+        "c.res": lifting.pack(q),
+    }
+    size = sum(len(v) + 8 for v in sections.values())
+    return Correction(sections, size, pos, clip.metric.of_positions(pos), e, jit)
+
+
+def search(clip: Clip, base: np.ndarray, target: Target) -> Correction:
+    """The correction with the largest bound meeting ``target`` (the bound is at most ``max_error``; for a
+    distortion or ARMS target, secant steps in log space inside the bracket of met and missed bounds, at most
+    :data:`SEARCH_FITS` fits)."""
+    e_cap = target.max_error
+    if target.max_distortion is None and target.max_arms is None:
+        assert e_cap is not None
+        return fit(clip, base, e_cap)
+    guesses = []
+    if target.max_arms is not None:
+        guesses.append(2.0 * target.max_arms)
+    if target.max_distortion is not None:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)
+            present = np.where(clip.valid[..., None], clip.positions, np.nan)
+            spread = float(np.nan_to_num(np.sqrt(np.nanmean((present - np.nanmean(present, axis=0)) ** 2) * 3)))
+        guesses.append(2.0 * target.max_distortion / 100.0 * max(spread, 1e-12))
+    base_errors = clip.metric.of_positions(clip.positions_of(base))
+    if target.met(base_errors) and base_errors.max_error > 0:  # the model alone meets it: hold feet, bound the rest
+        guesses = [base_errors.max_error * 1.001]
+    e = min(guesses + ([e_cap] if e_cap is not None else []))
+    best: Correction | None = None  # the largest bound met so far
+    low_fail = math.inf  # the smallest bound missed so far
+    cur = fit(clip, base, e)
+    for _ in range(SEARCH_FITS):
+        score = target.score(cur.errors)
+        if score <= 1:
+            best = cur if best is None or cur.bound > best.bound else best
+        else:
+            low_fail = min(low_fail, cur.bound)
+        # secant in log space (the figures grow about linearly with the bound), kept inside the bracket
+        nxt = cur.bound * float(np.clip(0.95 / max(score, 1e-9), 0.25, 4.0))
+        if e_cap is not None:
+            nxt = min(nxt, e_cap)
+        lo = best.bound if best is not None else 0.0
+        if not lo < nxt < low_fail:
+            nxt = math.sqrt(lo * low_fail) if lo > 0 and math.isfinite(low_fail) else (
+                lo * 2.0 if lo > 0 else low_fail / 2.0)
+        if (best is not None and (nxt <= best.bound * 1.08 or (e_cap is not None and best.bound >= e_cap)))\
+                or (math.isfinite(low_fail) and nxt >= low_fail / 1.08 and best is not None):
+            break
+        cur = fit(clip, base, nxt)
+    return best if best is not None else cur
+    return cur

@@ -1,0 +1,133 @@
+"""Error-bounded, smooth coding of a residual matrix: closed-loop interpolating lifting.
+
+A residual ``x`` ``(frames, columns)`` is coded with a tolerance ``tol`` ``(frames, columns)`` such that every
+decoded sample is within ``tol`` of ``x`` (``|x - y| <= tol`` element-wise, up to float rounding):
+
+* the frames are padded (edge repeat) to ``n = k * 2**levels + 1``; the coarse knots ``0, S, 2S, ...``
+  (``S = 2**levels``) are quantised with one step per column (twice the smallest tolerance on the knots),
+  and coded as time differences of their integers;
+* each finer level ``l`` (spacing ``h = 2**l``) predicts its new samples (odd multiples of ``h``) from the
+  already *decoded* coarser samples with the 4-point Deslauriers-Dubuc filter ``(-1, 9, 9, -1) / 16``
+  (linear next to the ends). A prediction within ``tol`` of the value codes 0 (dead zone); otherwise the
+  detail is the *smallest* number of steps ``STEP * tol`` that brings it within ``tol`` (the decoded
+  curve bends just enough, staying on the prediction's side: rounding to the nearest step would flip the
+  error's sign and add white noise, i.e. jitter and foot skate).
+
+With every detail zero the decoded curve is the Deslauriers-Dubuc subdivision of the knots: smooth (close to
+C2), so the correction adds little acceleration energy (jitter); a non-zero detail adds a local bump of the
+scale of its level. The integers go to the range coder (:func:`mocapz.format.entropy.encode_int_matrix`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from mocapz.errors import FormatError
+from mocapz.format.entropy import decode_int_matrix, encode_int_matrix
+
+BIG = 1e30  # tolerance standing for "any value will do" (a column that moves no point)
+SHRINK = 1.0  # tolerance factor per level above the finest
+
+
+STEP = 1.0  # detail step, in tolerances (<= 2)
+
+
+def level_factor(level: int) -> float:
+    """Share of a sample's tolerance used at lifting level ``level`` (0: the finest): coarser samples are
+    coded tighter, so that finer ones are predicted well enough to need no detail (smooth, cheap)."""
+    return float(SHRINK**level)
+
+
+def plan(frames: int, levels: int) -> tuple[int, int]:
+    """``(levels, padded frames)``: at most ``levels`` lifting levels, fewer for short clips."""
+    lv = int(max(0, min(levels, int(np.floor(np.log2(max(frames - 1, 1)))))))
+    span = 1 << lv
+    n = -(-(max(frames, 1) - 1) // span) * span + 1
+    return lv, n
+
+
+def _pad(a: np.ndarray, n: int) -> np.ndarray:
+    """``a`` ``(frames, columns)`` extended to ``n`` rows by repeating its last row."""
+    if a.shape[0] >= n:
+        return a[:n]
+    return np.concatenate([a, np.repeat(a[-1:], n - a.shape[0], axis=0)])
+
+
+def _predict(y: np.ndarray, h: int) -> tuple[np.ndarray, np.ndarray]:
+    """New sample indices ``(m,)`` of level spacing ``h`` and their predictions ``(m, columns)`` from the
+    decoded samples of spacing ``2h`` in ``y`` ``(n, columns)``."""
+    n = y.shape[0]
+    idx = np.arange(h, n - 1, 2 * h)
+    left, right = y[idx - h], y[idx + h]
+    pred = 0.5 * (left + right)
+    inner = (idx - 3 * h >= 0) & (idx + 3 * h <= n - 1)
+    if inner.any():
+        i = idx[inner]
+        pred[inner] = (9.0 * (y[i - h] + y[i + h]) - (y[i - 3 * h] + y[i + 3 * h])) / 16.0
+    return idx, pred
+
+
+def quantise(x: np.ndarray, tol: np.ndarray, levels: int) -> tuple[np.ndarray, np.ndarray]:
+    """Quantise residual ``x`` ``(frames, columns)`` within ``tol`` ``(frames, columns)`` (> 0, ``BIG`` =
+    free).
+
+    Returns the integers ``(padded frames, columns)`` (coarse knot differences, then the details level by
+    level) and the decoded residual ``(frames, columns)`` (what :func:`decode` gives).
+    """
+    frames, cols = x.shape
+    lv, n = plan(frames, levels)
+    xp, tp = _pad(x, n), _pad(np.minimum(tol, BIG), n)
+    y = np.zeros((n, cols))
+    span = 1 << lv
+    step0 = 2.0 * level_factor(lv) * tp[::span].min(axis=0)  # (columns,)
+    q0 = np.round(xp[::span] / step0).astype(np.int64)
+    y[::span] = q0 * step0
+    parts = [np.diff(q0, axis=0, prepend=0)]
+    for level in range(lv - 1, -1, -1):
+        h = 1 << level
+        idx, pred = _predict(y, h)
+        t = level_factor(level) * tp[idx]
+        step = STEP * t
+        d = xp[idx] - pred
+        q = (np.sign(d) * np.ceil(np.maximum(np.abs(d) - t, 0.0) / step)).astype(np.int64)
+        y[idx] = pred + q * step
+        parts.append(q)
+    return np.concatenate(parts), y[:frames]
+
+
+def pack(q: np.ndarray) -> bytes:
+    """The bytes of the integers of :func:`quantise` (range coder)."""
+    return encode_int_matrix(q) if q.shape[1] else b""
+
+
+def read(data: bytes, frames: int, cols: int, levels: int) -> np.ndarray:
+    """The integers of :func:`pack` for a clip of ``frames`` x ``cols`` values (the stream's shape is checked
+    before anything is allocated)."""
+    if cols == 0:
+        return np.zeros((0, 0), dtype=np.int64)
+    return decode_int_matrix(data, (plan(frames, levels)[1], cols))
+
+
+def decode(q_all: np.ndarray, tol: np.ndarray, levels: int) -> np.ndarray:
+    """Inverse of :func:`quantise`: the decoded residual ``(frames, columns)`` from the integers (:func:`read`)
+    and the same ``tol`` and ``levels``."""
+    frames, cols = tol.shape
+    if cols == 0:
+        return np.zeros((frames, 0))
+    lv, n = plan(frames, levels)
+    tp = _pad(np.minimum(tol, BIG), n)
+    span = 1 << lv
+    n0 = len(range(0, n, span))
+    y = np.zeros((n, cols))
+    step0 = 2.0 * level_factor(lv) * tp[::span].min(axis=0)
+    y[::span] = np.cumsum(q_all[:n0], axis=0) * step0
+    pos = n0
+    for level in range(lv - 1, -1, -1):
+        h = 1 << level
+        idx, pred = _predict(y, h)
+        q = q_all[pos : pos + idx.size]
+        if q.shape[0] != idx.size:
+            raise FormatError(None, "corrupted correction stream (detail count)")
+        y[idx] = pred + q * (STEP * level_factor(level) * tp[idx])
+        pos += idx.size
+    return y[:frames]

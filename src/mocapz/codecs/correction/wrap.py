@@ -1,0 +1,206 @@
+"""The correction layer around a lossy codec's encoder and decoder: every target met on every file.
+
+:func:`corrected` turns a codec's ``encode`` / ``decode`` into ones that
+
+1. resolve the target (the user's, or the default one: max error 1 cm on every point, feet held);
+2. encode the clip with the codec's own model (its own or the user's settings; pga and patterns may run
+   their own search for a distortion / ARMS target, see ``base_options``; a model missing that falls back
+   to its settings), decode it, and code the residual with :func:`~mocapz.codecs.correction.fit.search`
+   so that every bound holds on the decoded result; the same is tried on a zero base (the correction
+   alone) and the smaller file is kept;
+3. refuse only a max-error target tighter than the source's own decimals.
+
+Sections: the model's own (untouched), plus ``c.head`` (layout version, base kind, lifting levels),
+``c.codes``, ``c.levels``, ``c.res`` and, on a zero base with marker gaps, ``c.gaps``. The decoder applies the
+correction when ``c.head`` is present; files without it decode as the plain codec did.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+
+from mocapz.codecs.correction import bounds, lifting
+from mocapz.codecs.correction.fit import Clip, Correction, search, value_matrix
+from mocapz.codecs.gaps import pack_mask, unpack_mask
+from mocapz.codecs.options import Length, Option
+from mocapz.codecs.target import TARGET_NAMES, Target
+from mocapz.errors import FormatError, TargetError
+from mocapz.format.entropy import decode_int_matrix, read_uvarint, unpack_uint64, write_uvarint
+from mocapz.model.header import ClipHeader
+from mocapz.model.motion import AnyMotion, MarkerMotion, Motion
+
+Sections = dict[str, bytes]
+Encoder = Callable[..., Sections]
+Decoder = Callable[[Sections, ClipHeader], AnyMotion]
+
+DEFAULT_ERROR_CM = 1.0  # the default target (codecs.target.DEFAULT_TARGET_TEXT); 1/170 of the body height
+# when the length unit is unknown
+FORMAT = 1
+BASE_NONE, BASE_MODEL = 0, 1
+
+
+def resolve_target(motion: AnyMotion, options: dict[str, Any]) -> Target:
+    """The user's target in file units, or the default one (:data:`~mocapz.codecs.target.DEFAULT_TARGET_TEXT`)."""
+    target = Target.from_options(options, motion.unit_cm)
+    if target.active:
+        return target
+    return Target(max_error=default_error(motion))
+
+
+def default_error(motion: AnyMotion) -> float:
+    """1 cm in file units, or 1/170 of the body height when the unit is unknown."""
+    if motion.unit_cm:
+        return DEFAULT_ERROR_CM / motion.unit_cm
+    clip = Clip(motion, hold_feet=False)
+    return clip.body / 170.0
+
+
+def strip_targets(motion: AnyMotion, options: dict[str, Any], target: Target) -> dict[str, Any]:
+    """The options without the targets: the model with its own settings (for models whose rate control cannot
+    aim at a max error, or is slow)."""
+    return {k: v for k, v in options.items() if k not in TARGET_NAMES and k != "hold_feet"}
+
+
+def native_targets(motion: AnyMotion, options: dict[str, Any], target: Target) -> dict[str, Any]:
+    """The options with the distortion and ARMS targets as given and no max error (for models whose rate
+    control aims at those two; the correction adds the max error and the feet)."""
+    out = strip_targets(motion, options, target)
+    if target.max_distortion is not None:
+        out["max_distortion"] = target.max_distortion
+    if target.max_arms is not None:
+        out["max_arms"] = Length(target.max_arms)
+    return out
+
+
+def given_settings(options: dict[str, Any], declared: tuple[Option, ...]) -> bool:
+    """True when the user fixed a model setting (an option other than the targets, unlike its default)."""
+    return any(o.name not in TARGET_NAMES and o.name != "hold_feet" and options.get(o.name) is not None
+               and options.get(o.name) != o.default for o in declared)
+
+
+def corrected(encode: Encoder, decode: Decoder, codec: str, declared: tuple[Option, ...],
+              base_options: Callable[[AnyMotion, dict[str, Any], Target], dict[str, Any]] | None = None,
+              zero_base: bool = True) -> tuple[Encoder, Decoder]:
+    """The codec's encoder and decoder with the correction layer (see the module docstring).
+
+    Args:
+        encode, decode: the model's.
+        codec: its name (messages).
+        declared: its option declarations (settings the user fixes are kept as given, and the model is used).
+        base_options: ``(motion, options, target) -> options`` the model is encoded with (default: its own
+            settings, no target: a search of the model's settings costs more time than the correction does).
+        zero_base: whether the correction alone (no model) may be chosen when it is smaller.
+    """
+    def enc(motion: AnyMotion, **options: Any) -> Sections:
+        if motion.n_frames == 0 or motion.values.size == 0:  # nothing to be wrong about
+            return encode(motion, **strip_targets(motion, options, Target()))
+        target = resolve_target(motion, options)
+        clip = Clip(motion, bool(options.get("hold_feet", True)))
+        _refuse_below_precision(clip, target, codec)
+        header = ClipHeader.of(motion)
+        fixed = given_settings(options, declared)
+        make = base_options or strip_targets
+        tried: list[tuple[int, int, Sections, Correction]] = []
+        try:
+            base_sections = encode(motion, **make(motion, options, target))
+            base = value_matrix(decode(base_sections, header))
+            tried.append((BASE_MODEL, _size(base_sections), base_sections, search(clip, base, target)))
+        except TargetError:
+            if fixed or not zero_base:
+                base_sections = encode(motion, **strip_targets(motion, options, target))
+                base = value_matrix(decode(base_sections, header))
+                tried.append((BASE_MODEL, _size(base_sections), base_sections, search(clip, base, target)))
+        if zero_base and not fixed:
+            zero = {"c.gaps": pack_mask(motion.missing)} if isinstance(motion, MarkerMotion) \
+                and motion.missing.any() else {}
+            tried.append((BASE_NONE, _size(zero), zero, search(clip, np.zeros_like(clip.values), target)))
+        kind, _, base_sections, cor = min(tried, key=lambda t: t[1] + t[3].size)
+        if not target.met(cor.errors):
+            raise TargetError(f"{motion.metadata.get('path', motion.name)}: the {codec} codec with its correction "
+                              f"misses the target ({target.describe()}): it reaches distortion "
+                              f"{cor.errors.distortion_pct:.4g} %, max error {cor.errors.max_error:.4g} file units "
+                              "(the lossless codec gives the values back exactly)")
+        head = write_uvarint(FORMAT) + write_uvarint(kind) + write_uvarint(clip.levels)
+        return {**base_sections, "c.head": head, **cor.sections}
+
+    def dec(sections: Sections, header: ClipHeader) -> AnyMotion:
+        if "c.head" not in sections:
+            return decode(sections, header)
+        return apply(sections, header, decode)
+
+    return enc, dec
+
+
+def _size(sections: Sections) -> int:
+    return sum(len(v) + 8 for v in sections.values())
+
+
+def _refuse_below_precision(clip: Clip, target: Target, codec: str) -> None:
+    floor = clip.precision_floor()
+    if target.max_error is not None and target.max_error < floor:
+        raise TargetError(f"{clip.motion.metadata.get('path', clip.motion.name)}: max error "
+                          f"{target.max_error:.4g} file units is below the source's own precision (its decimals "
+                          f"allow errors up to {floor:.4g}); the {codec} codec reaches {floor:.4g} and above, the "
+                          "lossless codec gives the values back exactly")
+
+
+def apply(sections: Sections, header: ClipHeader, decode: Decoder) -> AnyMotion:
+    """Decode the model (or a zero base) and add the coded correction."""
+    try:
+        head = sections["c.head"]
+        fmt, pos = read_uvarint(head, 0)
+        kind, pos = read_uvarint(head, pos)
+        levels, pos = read_uvarint(head, pos)
+        if fmt != FORMAT or kind not in (BASE_NONE, BASE_MODEL) or levels > 16:
+            raise FormatError(None, "corrupted correction header")
+        groups = group_of(header)
+        frames, cols = header.frames, groups.size
+        # every stream's shape is checked against the header before a frames x columns array is made
+        codes = unpack_uint64(sections["c.codes"], cols)
+        if np.any(codes > bounds.FREE):
+            raise FormatError(None, "corrupted correction codes")
+        dlev = decode_int_matrix(sections["c.levels"], (frames, int(groups.max(initial=-1)) + 1))
+        q = lifting.read(sections["c.res"], frames, cols, levels)
+        lev = np.cumsum(dlev, axis=0)
+        if lev.size and (lev.min() < 0 or lev.max() > 60):
+            raise FormatError(None, "corrupted correction levels")
+        if kind == BASE_MODEL:
+            base_motion = decode({k: v for k, v in sections.items() if not k.startswith("c.")}, header)
+        else:
+            base_motion = zero_motion(header, sections.get("c.gaps"))
+    except KeyError as exc:
+        raise FormatError(None, f"corrupted correction (missing section {exc})") from None
+    tol = bounds.tol_of(codes)[None, :] * 2.0 ** (-lev[:, groups].astype(np.float64) / 2.0)
+    y = lifting.decode(q, tol, levels)
+    if not y.any():
+        return base_motion
+    out = value_matrix(base_motion) + y
+    if isinstance(base_motion, Motion):
+        wrap = header.rotation_mask[None, :] & (y != 0)
+        half = header.period / 2
+        out = np.where(wrap, np.mod(out + half, header.period) - half, out)
+        return base_motion.with_channels(out)
+    return base_motion.with_positions(out.reshape(base_motion.positions.shape))
+
+
+def group_of(header: ClipHeader) -> np.ndarray:
+    """``(columns,)`` the group (joint, marker) of every value column."""
+    if header.skeleton is not None:
+        return np.concatenate([np.full(len(c), j) for j, c in enumerate(header.skeleton.channels)]
+                              + [np.zeros(0)]).astype(np.int64)
+    return np.repeat(np.arange(len(header.labels)), 3)
+
+
+def zero_motion(header: ClipHeader, gaps: bytes | None) -> AnyMotion:
+    """A motion of zeros (NaN on the stored gaps) to add the correction to."""
+    if header.skeleton is not None:
+        return header.motion(np.zeros((header.frames, header.n_columns)))
+    pos = np.zeros(header.value_shape)
+    if gaps is not None:
+        mask = unpack_mask(gaps, (header.frames, len(header.labels)))
+        pos[mask] = math.nan
+    return header.motion(pos)
