@@ -216,6 +216,7 @@ def fit(clip: Clip, base: np.ndarray, e: float) -> Correction:
             misses = grown
         if not bounds.tighten(levels, limit, lay, misses, step):
             break
+    q, y, pos = _settle(clip, x, base, t0, levels, cap, bound)
     sections = {
         "c.codes": pack_uint64(codes.astype(np.uint64)),
         "c.levels": encode_int_matrix(np.diff(levels, axis=0, prepend=0)),
@@ -223,6 +224,29 @@ def fit(clip: Clip, base: np.ndarray, e: float) -> Correction:
     }
     size = sum(len(v) + 8 for v in sections.values())
     return Correction(sections, size, pos, clip.metric.of_positions(pos), e, jit)
+
+
+def _settle(clip: Clip, x: np.ndarray, base: np.ndarray, t0: np.ndarray, levels: np.ndarray, cap: np.ndarray,
+            bound: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The last word on the bound: the rounds of :func:`fit` may end (jitter tightening undoing a bound met one
+    round before) with a few points over their bound; the groups acting on them go straight to their safe
+    level, where the worst-case sum holds, until none is over (at worst every group at its safe level).
+    Returns the integers, the decoded residual and the corrected positions; ``levels`` is raised in place."""
+    lay = clip.layout
+    for _ in range(MAX_ROUNDS):
+        q, y = lifting.quantise(x, bounds.tolerances(t0, lay, levels), clip.levels)
+        pos = clip.positions_of(base + y)
+        with np.errstate(invalid="ignore"):
+            misses = clip.valid & ~(np.linalg.norm(pos - clip.positions, axis=2) <= bound * VERIFY)
+        if not misses.any():
+            break
+        up = bounds.groups_moving(lay, misses) & (levels < cap)
+        if not up.any():
+            up = levels < cap  # nothing left to raise where it misses: every group to its safe level
+            if not up.any():
+                break
+        levels[up] = cap[up]
+    return q, y, pos
 
 
 def search(clip: Clip, base: np.ndarray, target: Target) -> Correction:
