@@ -11,7 +11,7 @@ from mocapz.codecs.pga.decode import decode
 from mocapz.codecs.pga.options import OPTIONS
 from mocapz.codecs.pga.ratecontrol import encode
 
-VERSION = 1
+VERSION = 2  # 2: the fast IK solver (iksolve); decoded values moved by ~1e-8 rad against version 1
 
 INFO = CodecInfo(
     name="pga",
