@@ -159,7 +159,7 @@ def _cell(row: dict[str, Any], what: str, ref: dict[str, Any] | None) -> str:
     if "over" in m:
         return f"over {m['over']:.0f} s"
     if "error" in m:
-        return f"error: {m['error']}"
+        return "refused (TargetError)" if "TargetError" in m["error"] else f"error: {m['error']}"
     fps = _fps(m.get("frames", row["frames"]), m.get(key))
     text = f"{fps:,.0f}"
     if what == "dec":
@@ -265,12 +265,23 @@ def main() -> int:
     ap.add_argument("--repeat", type=int, default=2, help="timings per measurement (the best is kept)")
     ap.add_argument("--time-limit", type=float, default=120.0, help="seconds before a target encode is stopped")
     ap.add_argument("--out", type=Path, default=OUT)
+    ap.add_argument("--render", type=Path, help="write the report again from a run's .json (no measuring)")
     ap.add_argument("--worker", help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.worker:
         print(json.dumps(worker(json.loads(args.worker))))
         return 0
     args.argv = sys.argv[1:]
+    if args.render:
+        saved = json.loads(args.render.read_text())
+        args.argv = saved.get("argv", args.argv)
+        args.repeat, args.time_limit = saved.get("repeat", args.repeat), saved.get("time_limit", args.time_limit)
+        codecs = saved.get("codecs") or list(dict.fromkeys(r["codec"] for r in saved["rows"]))
+        started = saved.get("started", time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime(args.render.stat().st_mtime)))
+        text = render(saved["rows"], codecs, args, started, saved["machine"], saved.get("wall_s", 0.0))
+        args.out.write_text(text + "\n", encoding="utf-8")
+        print(text)
+        return 0
     sys.path.insert(0, str(ROOT / "src"))
     from mocapz.bench.runner import machine  # noqa: PLC0415
 
@@ -286,10 +297,13 @@ def main() -> int:
     info = machine()
     t0 = time.perf_counter()
     rows = measure(clips, codecs, args.repeat, args.time_limit)  # type: ignore[arg-type]
-    text = render(rows, codecs, args, started, info, time.perf_counter() - t0)
+    wall = time.perf_counter() - t0
+    text = render(rows, codecs, args, started, info, wall)
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text(text + "\n", encoding="utf-8")
-    (args.out.with_suffix(".json")).write_text(json.dumps({"machine": info, "rows": rows}, indent=1) + "\n")
+    saved = {"machine": info, "rows": rows, "codecs": codecs, "argv": args.argv, "repeat": args.repeat,
+             "time_limit": args.time_limit, "started": started, "wall_s": wall}
+    args.out.with_suffix(".json").write_text(json.dumps(saved, indent=1) + "\n", encoding="utf-8")
     print(text)
     return 0
 
