@@ -96,3 +96,8 @@ def test_fast_decoder_is_no_further_from_the_original(coded: dict, monkeypatch: 
             old = mocapz.evaluate(original, mocapz.decompress(data))
         assert new.max_err <= old.max_err * (1 + 1e-6) + 1e-9, name
         assert new.distortion_pct <= old.distortion_pct * (1 + 1e-6) + 1e-9, name
+
+
+def test_fast_pose_equals_the_model(coded: dict) -> None:
+    d, _ = _streams(coded["02_03"][1])
+    assert np.allclose(iksolve.pose(d.model, d.coords), d.model.pose(d.coords), rtol=0, atol=1e-13)

@@ -11,8 +11,9 @@ What changes against the reference solver:
 - rotations and right Jacobians come from one closed form (``K^2 = w w^T - |w|^2 I``);
 - the Jacobian is one matrix product per block of frames: with ``u_n = G_n J_r(w_n)`` (3 x 3) and the
   model's rows ``B_n`` (3 x k) of every joint ``n`` above effector ``e``, the column-wise cross products
-  sum to ``J_e = (sum_n u_n B_n) x p_e + sum_n [o_n]x u_n B_n``, and both sums are one GEMM of the masked
-  rows ``(e*k, 3m)`` against the stacked ``u_n`` and ``[o_n]x u_n`` ``(3m, 6F)``;
+  sum to ``J_e = (sum_n u_n B_n) x p_e + sum_n [o_n]x u_n B_n``; both sums are one GEMM per tree segment
+  (joints moving the same effectors) of its rows ``B^T`` ``(k, 3n)`` against its stacked ``u_n`` and
+  ``[o_n]x u_n`` ``(3n, 6F)``, added to the sums of the segment's effectors;
 - the damped normal equations (symmetric positive definite) are solved by Gaussian elimination
   vectorised over frames, not by one LAPACK call per frame;
 - without the temporal regulariser frames are independent and are solved in blocks of :data:`BLOCK`
@@ -24,6 +25,7 @@ from __future__ import annotations
 import numpy as np
 
 from mocapz.codecs.pga.ik import IKProblem
+from mocapz.codecs.pga.model import PGAModel
 
 BLOCK = 512  # frames per block when frames are independent (lam_temporal == 0)
 _CROSS = ((1, 2), (2, 0), (0, 1))  # (c1, c2) of component c of a cross product
@@ -63,8 +65,14 @@ def _mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
         + a[..., :, 2, None, :] * b[..., None, 2, :, :]
 
 
+def pose(model: PGAModel, x: np.ndarray) -> np.ndarray:
+    """:meth:`PGAModel.pose` with frames last inside: rotations ``(F, n, 3, 3)`` of coordinates ``(F, k)``."""
+    w = (model.basis @ x.T).reshape(-1, 3, x.shape[0])
+    return _mul(model.mean[..., None], rodrigues(w)[0]).transpose(3, 0, 1, 2)
+
+
 class FastIK:
-    """The parts of an :class:`IKProblem` the fast solver precomputes (joint chains, masked model rows)."""
+    """The parts of an :class:`IKProblem` the fast solver precomputes (joint chains, model rows per tree segment)."""
 
     def __init__(self, problem: IKProblem) -> None:
         sk, model = problem.skeleton, problem.model
@@ -84,20 +92,24 @@ class FastIK:
         self.parent = [index.get(int(sk.parents[j]), -1) for j in self.order]
         self.carrier = np.array([index[j] for j in carriers], dtype=np.int64)
         slot = problem._slot
-        moving = [j for j in self.order if slot[j] >= 0]  # model joints on some chain
+        # model joints on some chain, grouped by the set of effectors they move (a tree segment: legs, spine,
+        # arms...), so that each group's rows are one slice of the Jacobian's stacked products
+        e = len(carriers)
+        moves = {j: tuple(a for a, chain in enumerate(chains) if j in chain) for j in self.order if slot[j] >= 0}
+        keys = sorted(set(moves.values()))
+        moving = sorted(moves, key=lambda j: (keys.index(moves[j]), index[j]))
         self.m_place = np.array([index[j] for j in moving], dtype=np.int64)
         self.slot_of = {index[j]: i for i, j in enumerate(moving)}
         k = model.k
         rows = model.basis.reshape(-1, 3, k)[np.array([slot[j] for j in moving], dtype=np.int64)]  # (m, 3, k)
         self.basis = np.ascontiguousarray(rows.reshape(-1, k))  # (3m, k): x -> w of the moving joints
         self.mean = model.mean[[slot[j] for j in moving]][..., None]  # (m, 3, 3, 1)
-        e = len(carriers)
-        masked = np.zeros((e, k, len(moving), 3))
-        for a, chain in enumerate(chains):
-            for j in chain:
-                if slot[j] >= 0:
-                    masked[a, :, moving.index(j)] = rows[moving.index(j)].T
-        self.masked = masked.reshape(e * k, 3 * len(moving))  # (e*k, 3m)
+        self.groups: list[tuple[int, int, np.ndarray, tuple[int, ...]]] = []  # (first, stop, rows^T (k, 3n), effectors)
+        for key in keys:
+            first = next(i for i, j in enumerate(moving) if moves[j] == key)
+            stop = first + sum(moves[j] == key for j in moving)
+            self.groups.append((first, stop, np.ascontiguousarray(rows[first:stop].reshape(-1, k).T), key))
+        self.n_eff = e
         self.end_off = np.zeros((e, 3))
         for a, eff in enumerate(problem.effectors):
             if eff >= n_j:
@@ -143,7 +155,13 @@ class FastIK:
             + jr[:, 2, :, None] * gm[:, None, :, 2]  # ut[n, c, r] = (G_n J_r)[r, c]
         for r, (r1, r2) in enumerate(_CROSS):
             uv[:, :, 1, r] = om[:, None, r1] * ut[:, :, r2] - om[:, None, r2] * ut[:, :, r1]
-        sums = (self.masked @ uv.reshape(3 * m, 6 * f)).reshape(e, -1, 2, 3, f)
+        k = self.basis.shape[1]
+        sums = np.zeros((e, k, 2, 3, f))
+        flat = sums.reshape(e, k, 6 * f)
+        for first, stop, rows_t, effs in self.groups:
+            part = rows_t @ uv[first:stop].reshape(3 * (stop - first), 6 * f)  # (k, 6F)
+            for a in effs:
+                flat[a] += part
         big_u, big_v = sums[:, :, 0], sums[:, :, 1]  # (e, k, 3, F)
         jac = np.empty((e, 3, big_u.shape[1], f))
         for c, (c1, c2) in enumerate(_CROSS):
