@@ -37,6 +37,7 @@ bench: $(STAMP)
 	$(BIN)/python scripts/patterns.py
 	$(BIN)/python scripts/run_all.py
 	$(BIN)/python scripts/quality.py --jobs 2
+	$(BIN)/python scripts/speed.py
 
 clean:
 	rm -rf $(VENV) out .pytest_cache

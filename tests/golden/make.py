@@ -6,6 +6,7 @@ Run only for a deliberate format change (the codec's version is bumped and the o
 ``golden.json`` for ever, and re-encodes the sources to check the bytes have not moved.
 """
 
+# ruff: noqa: I001  (mocapz before numpy: it pins the BLAS kernels, see mocapz._blas)
 from __future__ import annotations
 
 import hashlib
@@ -15,9 +16,8 @@ import sys
 from dataclasses import replace
 from pathlib import Path
 
+import mocapz  # first: pins the BLAS kernels before NumPy is imported (mocapz._blas)
 import numpy as np
-
-import mocapz
 from mocapz.model.motion import MarkerMotion, Motion
 
 HERE = Path(__file__).resolve().parent

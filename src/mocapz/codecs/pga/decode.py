@@ -12,7 +12,8 @@ from mocapz.codecs.pga import lifting
 from mocapz.codecs.pga.channels import channels_from_pose
 from mocapz.codecs.pga.clip import targets_in_root_frame
 from mocapz.codecs.pga.effectors import effector_points
-from mocapz.codecs.pga.ik import IKProblem, make_problem, solve
+from mocapz.codecs.pga.ik import IKProblem, make_problem
+from mocapz.codecs.pga.iksolve import pose, solve_fast
 from mocapz.codecs.pga.joints import check_skeleton, inner_joints, position_columns
 from mocapz.codecs.pga.model import PGAModel
 from mocapz.codecs.pga.outliers import decode_outliers, kept_frames
@@ -178,13 +179,13 @@ def rebuild(skeleton: Skeleton, d: Decoded, s: PGASettings, targets: np.ndarray)
     if len(d.effectors) == 0 or s.iterations == 0:
         x = x0
     else:
-        x = solve(d.problem, targets, x0, x_prior=d.coords, lam_temporal=s.lam_temporal,
-                  lam_prior=s.lam_prior if d.coords is not None else 0.0, iterations=s.iterations)
+        x = solve_fast(d.problem, targets, x0, x_prior=d.coords, lam_temporal=s.lam_temporal,
+                       lam_prior=s.lam_prior if d.coords is not None else 0.0, iterations=s.iterations)
     if not np.isfinite(x).all():  # pragma: no cover - solve() keeps finite values
         x = np.nan_to_num(x0)
     local = np.broadcast_to(np.eye(3), (n, skeleton.n_joints, 3, 3)).copy()
     local[:, 0] = d.root_rot
-    local[:, model.joints] = model.pose(x)
+    local[:, model.joints] = pose(model, x)
     if not np.isfinite(local).all():  # only damaged streams (huge steps, loadings or coordinates) get here
         raise FormatError(None, "corrupted PGA stream (poses out of range)")
     return channels_from_pose(skeleton, local, d.root_pos, d.other)

@@ -1,0 +1,313 @@
+"""Speed benchmark (issue 12): encode (fixed settings and with a target), full decode and the whole
+``mocapz compress`` command, per codec, as frames/s and as a multiple of the lossless codec in the same run.
+
+Clips: the CMU BVH clips of ../shared/data/cmu/bvh (``--quick``: 3 of them) and a synthetic 10-minute clip
+(72,000 frames at 120 fps: the motion frames of 06_13 played forwards and backwards until long enough, so
+the motion stays continuous). Every measurement runs in its own process (``--worker``), on one thread
+(``OPENBLAS_NUM_THREADS=1`` and friends), and reports its peak resident memory (``ru_maxrss``: the Python
+interpreter, numpy/scipy and the loaded clip included). A call that runs over ``--time-limit`` seconds is
+stopped and reported as such. Random access ("seek") is not implemented yet (issue 12), so it is not measured.
+
+Usage::
+
+    .venv/bin/python scripts/speed.py                    # every CMU clip + the 10-minute clip, every codec
+    .venv/bin/python scripts/speed.py --quick            # 3 clips + the 10-minute clip
+    .venv/bin/python scripts/speed.py --clips 09_06,06_13 --codecs lossless,pga --repeat 3 --out /tmp/s.md
+
+Writes docs/benchmarks/speed.md (or --out) and prints it.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import resource
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+from typing import Any
+
+ROOT = Path(__file__).resolve().parents[1]
+DATA = ROOT.parent / "shared" / "data"
+OUT = ROOT / "docs" / "benchmarks" / "speed.md"
+CODECS = ("lossless", "quant", "pga", "patterns", "subsample", "pca", "segpca")
+FIXED: dict[str, dict[str, Any]] = {"pga": {"geodesics": 16}}  # fixed settings: the defaults, pga at 16 geodesics
+TARGET = {"max_error": "1cm"}
+QUICK = ("09_06", "12_01", "02_05")
+SYNTH_SOURCE, SYNTH_FRAMES = "06_13", 72_000
+ONE_THREAD = {"OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
+
+
+# ---------------------------------------------------------------- worker (one measurement, own process)
+
+def worker(spec: dict[str, Any]) -> dict[str, Any]:
+    """Load the clip, time the codec calls ``spec`` asks for (seconds, best of ``repeat``), report memory."""
+    import mocapz  # noqa: PLC0415  (first: pins the BLAS kernels)
+
+    motion = mocapz.load(spec["path"])
+    out: dict[str, Any] = {"frames": motion.n_frames, "rss_loaded_mb": _rss_mb()}
+    opts = dict(FIXED.get(spec["codec"], {}))
+    if spec["mode"] == "target":
+        t = time.perf_counter()
+        data = mocapz.compress(motion, codec=spec["codec"], **TARGET)
+        out["encode_target_s"] = time.perf_counter() - t
+    else:
+        enc, dec = [], []
+        for _ in range(spec["repeat"]):
+            t = time.perf_counter()
+            data = mocapz.compress(motion, codec=spec["codec"], **opts)
+            enc.append(time.perf_counter() - t)
+            t = time.perf_counter()
+            mocapz.decompress(data)
+            dec.append(time.perf_counter() - t)
+        out.update(encode_s=min(enc), decode_s=min(dec))
+    out.update(bytes=len(data), rss_peak_mb=_rss_mb())
+    return out
+
+
+def _rss_mb() -> float:
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0  # Linux: kilobytes
+
+
+# ---------------------------------------------------------------- parent: run the workers, time the CLI
+
+def run_worker(spec: dict[str, Any], limit: float) -> dict[str, Any]:
+    """One measurement in a fresh process; ``{"over": limit}`` when it runs over ``limit`` seconds."""
+    env = {**os.environ, **ONE_THREAD}
+    cmd = [sys.executable, __file__, "--worker", json.dumps(spec)]
+    try:
+        res = subprocess.run(cmd, capture_output=True, text=True, timeout=limit, env=env, check=False)
+    except subprocess.TimeoutExpired:
+        return {"over": limit}
+    if res.returncode != 0:
+        return {"error": (res.stderr.strip().splitlines() or ["?"])[-1][:160]}
+    return json.loads(res.stdout.strip().splitlines()[-1])
+
+
+def run_cli(path: Path, codec: str, repeat: int, limit: float, tmp: Path) -> dict[str, Any]:
+    """Wall time (best of ``repeat``) of the whole command ``mocapz compress`` (start-up and file read included)."""
+    exe = Path(sys.executable).parent / "mocapz"
+    flags = [f"--{k.replace('_', '-')}={v}" for k, v in FIXED.get(codec, {}).items()]
+    cmd = [str(exe), "compress", str(path), "-o", str(tmp / f"cli.{codec}.mcz"), "--codec", codec, "-f", "-q", *flags]
+    best = None
+    for _ in range(repeat):
+        t = time.perf_counter()
+        try:
+            res = subprocess.run(cmd, capture_output=True, text=True, timeout=limit, check=False,
+                                 env={**os.environ, **ONE_THREAD})
+        except subprocess.TimeoutExpired:
+            return {"over": limit}
+        if res.returncode != 0:
+            return {"error": (res.stderr.strip().splitlines() or ["?"])[-1][:160]}
+        dt = time.perf_counter() - t
+        best = dt if best is None else min(best, dt)
+    return {"cli_s": best}
+
+
+def synthetic_clip(tmp: Path) -> Path:
+    """Write the 10-minute clip (SYNTH_FRAMES frames, ping-pong of SYNTH_SOURCE's motion frames) as a BVH."""
+    import numpy as np  # noqa: PLC0415
+
+    import mocapz  # noqa: PLC0415
+
+    m = mocapz.load(DATA / "cmu" / "bvh" / f"{SYNTH_SOURCE}.bvh")
+    body = m.channels[1:]  # frame 0 is cgspeed's added T-pose
+    loop = np.concatenate([body, body[::-1]])
+    reps = -(-SYNTH_FRAMES // loop.shape[0])
+    values = np.concatenate([loop] * reps)[:SYNTH_FRAMES]
+    path = tmp / f"synthetic_10min_{SYNTH_SOURCE}.bvh"
+    mocapz.save(m.with_values(values), path)
+    return path
+
+
+def measure(clips: list[tuple[str, Path]], codecs: list[str], repeat: int, limit: float) -> list[dict[str, Any]]:
+    rows = []
+    with tempfile.TemporaryDirectory() as td:
+        tmp = Path(td)
+        for name, path in clips:
+            if path is None:
+                path = synthetic_clip(tmp)
+            for codec in codecs:
+                row: dict[str, Any] = {"clip": name, "codec": codec}
+                row["fixed"] = run_worker({"path": str(path), "codec": codec, "mode": "fixed", "repeat": repeat},
+                                          limit * 2 * repeat + 30)
+                row["target"] = ({"na": True} if codec == "lossless" else
+                                 run_worker({"path": str(path), "codec": codec, "mode": "target"}, limit + 30))
+                row["cli"] = run_cli(path, codec, repeat, limit + 30, tmp)
+                row["frames"] = row["fixed"].get("frames") or row["target"].get("frames")
+                rows.append(row)
+                print(f"{name} {codec}: {json.dumps(row)}", file=sys.stderr, flush=True)
+    return rows
+
+
+# ---------------------------------------------------------------- report
+
+def _fps(frames: int | None, seconds: float | None) -> float | None:
+    return frames / seconds if frames and seconds else None
+
+
+def _cell(row: dict[str, Any], what: str, ref: dict[str, Any] | None) -> str:
+    """``frames/s (x lossless)`` of one measurement, or why there is none."""
+    part, key = {"enc": ("fixed", "encode_s"), "dec": ("fixed", "decode_s"), "tgt": ("target", "encode_target_s"),
+                 "cli": ("cli", "cli_s")}[what]
+    m = row[part]
+    if m.get("na"):
+        return "n/a"
+    if "over" in m:
+        return f"over {m['over']:.0f} s"
+    if "error" in m:
+        return "refused (TargetError)" if "TargetError" in m["error"] else f"error: {m['error']}"
+    fps = _fps(m.get("frames", row["frames"]), m.get(key))
+    text = f"{fps:,.0f}"
+    if what == "dec":
+        text += f" ({1e6 / fps:.0f} us)"
+    if ref is not None:
+        rpart, rkey = ("fixed", "encode_s") if what == "tgt" else (part, key)
+        rfps = _fps(ref[rpart].get("frames", ref["frames"]), ref[rpart].get(rkey))
+        if rfps:
+            text += f" x{fps / rfps:.2f}"
+    return text
+
+
+def _mem(row: dict[str, Any]) -> str:
+    peaks = [row[p].get("rss_peak_mb") for p in ("fixed", "target") if row[p].get("rss_peak_mb")]
+    loaded = row["fixed"].get("rss_loaded_mb")
+    return f"{max(peaks):.0f} ({loaded:.0f})" if peaks and loaded else "-"
+
+
+def summarise(rows: list[dict[str, Any]], codecs: list[str]) -> list[dict[str, Any]]:
+    """One row per codec over the CMU clips: frames / total seconds of the clips where the call finished."""
+    out = []
+    parts = {"fixed": ("encode_s", "decode_s"), "target": ("encode_target_s",), "cli": ("cli_s",)}
+    for codec in codecs:
+        mine = [r for r in rows if r["codec"] == codec and r["frames"]]
+        if not mine:
+            continue
+        agg: dict[str, Any] = {"clip": "CMU clips", "codec": codec, "frames": sum(r["frames"] for r in mine)}
+        for part, keys in parts.items():
+            done = [r for r in mine if all(k in r[part] for k in keys)]
+            if done:
+                agg[part] = {k: sum(r[part][k] for r in done) for k in keys}
+                agg[part]["frames"] = sum(r["frames"] for r in done)
+            else:
+                agg[part] = dict(mine[0][part])
+        agg["over"] = sum("over" in r["target"] for r in mine) if agg["target"].get("frames") else 0
+        agg["fixed"]["rss_peak_mb"] = max(max(r[p].get("rss_peak_mb", 0) for p in ("fixed", "target")) for r in mine)
+        agg["fixed"]["rss_loaded_mb"] = max(r["fixed"].get("rss_loaded_mb", 0) for r in mine)
+        out.append(agg)
+    return out
+
+
+def table(rows: list[dict[str, Any]], with_clip: bool) -> list[str]:
+    head = ("| clip " if with_clip else "") + "| codec | frames | encode, fixed | encode, max error 1 cm | decode " \
+        "| `mocapz compress` (whole command) | peak memory MB (after load) |"
+    lines = [head, "|" + "---|" * (head.count("|") - 1)]
+    refs = {r["clip"]: r for r in rows if r["codec"] == "lossless"}
+    for r in rows:
+        ref = refs.get(r["clip"])
+        tgt = _cell(r, "tgt", ref)
+        if r.get("over"):
+            tgt += f" ({r['over']} clips over the limit, left out)"
+        cells = [r["codec"], f"{r['frames'] or '-':,}" if r["frames"] else "-", _cell(r, "enc", ref), tgt,
+                 _cell(r, "dec", ref), _cell(r, "cli", ref), _mem(r)]
+        lines.append(("| " + r["clip"] + " " if with_clip else "") + "| " + " | ".join(cells) + " |")
+    return lines
+
+
+def render(rows: list[dict[str, Any]], codecs: list[str], args: argparse.Namespace, started: str,
+           info: dict[str, Any], wall: float) -> str:
+    cmu = [r for r in rows if r["clip"] != "synthetic 10 min"]
+    synth = [r for r in rows if r["clip"] == "synthetic 10 min"]
+    lines = [
+        "# Speed (issue 12)", "",
+        f"Written by `scripts/speed.py {' '.join(args.argv)}` on {started} in {wall / 60:.0f} min. "
+        f"Machine: {info['cpu']}, {info['cores']} cores, load average {info['load_average_at_start']} at the "
+        f"start (shared machine: compare the multiples, not the absolute figures); every measurement in its "
+        f"own process on one thread, best of {args.repeat}.", "",
+        "Cells: frames/s, then `xN` = that codec's frames/s over the lossless codec's in the same run on the "
+        "same clips (encode with a target against lossless at fixed settings). Decode also gives us/frame. "
+        f"Fixed settings: each codec's defaults ({', '.join(f'{c}: {o}' for c, o in FIXED.items())}); the "
+        f"target is `max_error=1cm`, its process stopped after {args.time_limit + 30:.0f} s (\"over\": the "
+        f"limit, {args.time_limit:.0f} s, plus 30 s for start-up and reading the clip). Encode and decode time "
+        "the library call on a loaded clip (file reading and writing excluded); the whole command includes "
+        "Python's start-up and reading the file. Memory: peak resident set of the measuring process "
+        "(interpreter, numpy and the loaded clip included; the second figure is the same process after "
+        "loading the clip, before any codec ran).", "",
+        "**Seek (random access) is not implemented yet** (`decompress(data, frames=slice(a, b))`, issue 12), "
+        "so it is not measured: today reading any frame decodes the whole clip.", "",
+        "## Goals of issue 12", "",
+        "| goal | where to read it |", "|---|---|",
+        "| encode with a target >= 2,000 frames/s (pga, patterns), whole command | column `mocapz compress` does "
+        "not use a target; see `encode, max error 1 cm` |",
+        "| encode at fixed settings >= 10,000 frames/s; lossless and quant >= 20,000 | `encode, fixed` |",
+        "| decode >= 50,000 frames/s (<= 20 us/frame) every codec; <= 10 us lossless and quant | `decode` |",
+        "| memory under 300 MB for a 5,000-frame clip | `peak memory` (06_13, 4,906 frames) |", "",
+    ]
+    if cmu:
+        lines += ["## CMU clips, all together", "", "Frames/s over the clips where the call finished.", ""]
+        lines += table(summarise(cmu, codecs), with_clip=False) + [""]
+    if synth:
+        lines += [f"## Synthetic 10-minute clip ({SYNTH_FRAMES:,} frames at 120 fps, {SYNTH_SOURCE} looped)", ""]
+        lines += table(synth, with_clip=False) + [""]
+    if cmu:
+        lines += ["## Per clip", ""] + table(cmu, with_clip=True) + [""]
+    return "\n".join(lines)
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--quick", action="store_true", help=f"3 CMU clips ({', '.join(QUICK)}) + the 10-minute clip")
+    ap.add_argument("--clips", help="comma-separated CMU clip names (e.g. 09_06,06_13); 'none' for no CMU clip")
+    ap.add_argument("--no-synthetic", action="store_true", help="leave out the 10-minute clip")
+    ap.add_argument("--codecs", default=",".join(CODECS), help="comma-separated codecs (lossless is always run)")
+    ap.add_argument("--repeat", type=int, default=2, help="timings per measurement (the best is kept)")
+    ap.add_argument("--time-limit", type=float, default=120.0, help="seconds before a target encode is stopped")
+    ap.add_argument("--out", type=Path, default=OUT)
+    ap.add_argument("--render", type=Path, help="write the report again from a run's .json (no measuring)")
+    ap.add_argument("--worker", help=argparse.SUPPRESS)
+    args = ap.parse_args()
+    if args.worker:
+        print(json.dumps(worker(json.loads(args.worker))))
+        return 0
+    args.argv = sys.argv[1:]
+    if args.render:
+        saved = json.loads(args.render.read_text())
+        args.argv = saved.get("argv", args.argv)
+        args.repeat, args.time_limit = saved.get("repeat", args.repeat), saved.get("time_limit", args.time_limit)
+        codecs = saved.get("codecs") or list(dict.fromkeys(r["codec"] for r in saved["rows"]))
+        started = saved.get("started", time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime(args.render.stat().st_mtime)))
+        text = render(saved["rows"], codecs, args, started, saved["machine"], saved.get("wall_s", 0.0))
+        args.out.write_text(text + "\n", encoding="utf-8")
+        print(text)
+        return 0
+    sys.path.insert(0, str(ROOT / "src"))
+    from mocapz.bench.runner import machine  # noqa: PLC0415
+
+    if args.clips:
+        names = [] if args.clips == "none" else args.clips.split(",")
+    else:
+        names = list(QUICK) if args.quick else sorted(p.stem for p in (DATA / "cmu" / "bvh").glob("*.bvh"))
+    clips: list[tuple[str, Path | None]] = [(n, DATA / "cmu" / "bvh" / f"{n}.bvh") for n in names]
+    if not args.no_synthetic:
+        clips.append(("synthetic 10 min", None))
+    codecs = ["lossless"] + [c for c in args.codecs.split(",") if c and c != "lossless"]
+    started = time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime())
+    info = machine()
+    t0 = time.perf_counter()
+    rows = measure(clips, codecs, args.repeat, args.time_limit)  # type: ignore[arg-type]
+    wall = time.perf_counter() - t0
+    text = render(rows, codecs, args, started, info, wall)
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    args.out.write_text(text + "\n", encoding="utf-8")
+    saved = {"machine": info, "rows": rows, "codecs": codecs, "argv": args.argv, "repeat": args.repeat,
+             "time_limit": args.time_limit, "started": started, "wall_s": wall}
+    args.out.with_suffix(".json").write_text(json.dumps(saved, indent=1) + "\n", encoding="utf-8")
+    print(text)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
