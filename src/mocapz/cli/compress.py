@@ -127,7 +127,7 @@ def _one(path: Path, out: Path, codec: str, options: dict[str, Any], asf: Path |
         source_bytes = path.stat().st_size
     motion = with_unit(cut(motion, frame_slice(*rng, motion.frame_rate, motion.n_frames)), unit)
     info = get_codec(codec)
-    if info.lossy and not any(options.get(n) is not None for n in TARGET_NAMES):
+    if info.lossy and motion.kind in info.kinds and not any(options.get(n) is not None for n in TARGET_NAMES):
         say.info(f"{name}: no target given, the {codec} codec meets its default target: {DEFAULT_TARGET}")
     t0 = time.perf_counter()
     with say.progress(f"{name}: {codec}, {motion.n_frames} frames"):
