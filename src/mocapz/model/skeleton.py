@@ -87,6 +87,18 @@ class Skeleton:
         ends = np.array([j for j, _, _ in self.end_sites], dtype=np.int64)
         return np.concatenate([self.parents, ends])
 
+    def below(self) -> np.ndarray:
+        """``(joints, points)`` bool: ``below[a, p]`` is True when FK point ``p`` (joints, then end sites) lies
+        strictly below joint ``a`` in the hierarchy (a rotation of ``a`` moves ``p``)."""
+        parents = self.point_parents
+        out = np.zeros((self.n_joints, self.n_points), dtype=bool)
+        for p in range(self.n_points):
+            q = parents[p]
+            while q >= 0:
+                out[q, p] = True
+                q = parents[q]
+        return out
+
     def channel_slices(self) -> list[slice]:
         """Column range of each joint's channels in the motion's channel matrix."""
         out, start = [], 0

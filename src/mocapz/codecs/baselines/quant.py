@@ -83,12 +83,7 @@ def skeleton_tolerances(sk: Skeleton, channels: np.ndarray, max_error: float) ->
     for p in range(n_p):
         depth[p] = seg[p] + (depth[parents[p]] if parents[p] >= 0 else 0.0)
     # ancestors[p]: joints on the path root..p (p itself included when p is a joint)
-    below = np.zeros((n_j, n_p), dtype=bool)  # below[a, p]: p strictly below joint a
-    for p in range(n_p):
-        q = parents[p]
-        while q >= 0:
-            below[q, p] = True
-            q = parents[q]
+    below = sk.below()  # below[a, p]: p strictly below joint a
     active = np.ptp(channels, axis=0) > 0 if len(channels) else np.zeros(sk.n_channels, dtype=bool)
     cols_joint, cols_rot = [], []
     for j, chs in enumerate(sk.channels):

@@ -63,13 +63,7 @@ def layout(motion: AnyMotion, positions: np.ndarray) -> Layout:
         return Layout(group, np.eye(m, dtype=bool), np.full(3 * m, SAFETY / math.sqrt(3.0)), moving)
     sk = motion.skeleton
     n_j, n_p = sk.n_joints, sk.n_points
-    parents = sk.point_parents
-    below = np.zeros((n_j, n_p), dtype=bool)  # below[a, p]: p strictly below joint a
-    for p in range(n_p):
-        q = parents[p]
-        while q >= 0:
-            below[q, p] = True
-            q = parents[q]
+    below = sk.below()  # below[a, p]: p strictly below joint a
     lever = np.zeros(n_j)  # longest distance from a joint to a point below it, over the clip
     for j in range(n_j):
         if below[j].any() and len(positions):
