@@ -51,7 +51,7 @@ def source_bytes(path: Path) -> bytes:
 
 def mixed_precision(text: str) -> str:
     """A cgspeed BVH's MOTION numbers with trailing zeros cut, zeros after a negative value (and in every other
-    frame) written ``-0.0000``, and one float artefact (same rewrite as tests/test_lossless_values.py)."""
+    frame) written ``-0.0000``, and one float artefact (tests/test_lossless_values.py imports it)."""
     head, motion = text.split("MOTION", 1)
     lines = motion.splitlines()
     rows = [ln.split() for ln in lines[3:] if ln.strip()]

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import bz2
 import lzma
+import sys
 from functools import cache
 from pathlib import Path
 
@@ -18,6 +19,9 @@ from mocapz import MarkerMotion, Motion
 from mocapz.io.amc import read_asfamc, write_asfamc
 from mocapz.io.bvh import read_bvh, write_bvh
 from mocapz.io.trc import read_trc, write_trc
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "scripts"))
+from lossless import mixed_precision  # noqa: E402  (the rewrite the benchmark measures too)
 
 SUFFIXES = (".bvh", ".amc", ".c3d", ".trc")
 ALL_FILES = sorted(str(p.relative_to(DATA)) for p in DATA.rglob("*") if p.suffix.lower() in SUFFIXES)
@@ -93,33 +97,7 @@ def test_zero_signs_kept_on_cmu() -> None:
 
 
 # ------------------------------------------------------------------------------- mixed-precision BVH
-def mixed_precision(text: str) -> str:
-    """Rewrite a cgspeed BVH's MOTION numbers the way some exporters write them: trailing zeros cut
-    (``-46.1820`` -> ``-46.182``, ``0.0000`` -> ``0.0``), zeros written ``-0.0000`` (after a negative value in
-    their channel, and in every other frame), and one float artefact (``-0.0071`` -> ``-0.00709999999999``)."""
-    head, motion = text.split("MOTION", 1)
-    lines = motion.splitlines()
-    rows = [ln.split() for ln in lines[3:] if ln.strip()]
-    out_rows = []
-    prev: list[str] | None = None
-    for row in rows:
-        cells = []
-        for c, tok in enumerate(row):
-            value = float(tok)
-            if value == 0 and prev is not None and (float(prev[c]) < 0 or len(out_rows) % 2):
-                cells.append("-0.0000")
-            elif "." in tok:
-                cut = tok.rstrip("0")
-                cells.append(cut + "0" if cut.endswith(".") else cut)
-            else:
-                cells.append(tok)
-        out_rows.append(cells)
-        prev = row
-    r, c = len(out_rows) // 2, 20
-    value = float(out_rows[r][c])
-    out_rows[r][c] = repr(value - 1e-14 if value else -1e-14)
-    body = "\n".join(" ".join(cells) for cells in out_rows)
-    return head + "MOTION\n" + "\n".join(lines[1:3]) + "\n" + body + "\n"
+# mixed_precision: the rewrite scripts/lossless.py measures too (one definition, imported above)
 
 
 @pytest.mark.parametrize("rel", ["cmu/bvh/09_06.bvh", "cmu/bvh/02_03.bvh"])
