@@ -18,6 +18,7 @@ import numpy as np
 
 from mocapz.errors import FormatError
 from mocapz.io.c3d_checks import BLOCK, PROCESSORS, C3DLayout
+from mocapz.io.c3d_tolerant import point_scales
 from mocapz.model.c3d_extras import TRACK_UNIT_PARAMS, C3DExtras, float_words, word_dtype
 
 
@@ -38,7 +39,7 @@ def split_c3d(path: Path, layout: C3DLayout) -> tuple[list[str], np.ndarray, C3D
     markers = np.array([i for i in range(n) if not kinds[i]], dtype=np.int64)
     extras = C3DExtras(
         header=raw[:BLOCK], gap=raw[BLOCK:(h.param_block - 1) * BLOCK], params=raw[(h.param_block - 1) * BLOCK:start],
-        tail=raw[end:], processor=h.processor, is_float=h.is_float, scales=_point_scales(layout),
+        tail=raw[end:], processor=h.processor, is_float=h.is_float, scales=point_scales(layout),
         marker_index=markers, track_index=tracks, track_labels=[labels[i] for i in tracks],
         track_kinds=[kinds[i] for i in tracks], track_units=[_unit(layout, kinds[i]) for i in tracks],
         residual_words=point_words[:, :, 3].copy(), track_words=point_words[:, tracks, :3].copy(),
@@ -130,19 +131,6 @@ def _track_kinds(layout: C3DLayout, labels: list[str]) -> list[str]:
 def _unit(layout: C3DLayout, kind: str) -> str:
     units = _strings(layout, "POINT", _unit_params(layout)[kind])
     return units[0] if units else ""
-
-
-def _point_scales(layout: C3DLayout) -> np.ndarray:
-    """``|scale|`` of every point ``(points,)`` as float64 of the stored float32: POINT:SCALE's own
-    value for each point if it has one per point, else its first value, else the header's scale."""
-    param = layout.params.get(("POINT", "SCALE"))
-    values = np.abs(param.numbers(layout.header.processor)) if param is not None else np.empty(0)
-    if values.size == 0:
-        values = np.array([abs(layout.header.scale)])
-    scales = np.full(layout.points, values[0])
-    k = min(values.size, layout.points)
-    scales[:k] = values[:k]
-    return scales
 
 
 FRAME_PARAMS = (("POINT", "FRAMES"), ("TRIAL", "ACTUAL_START_FIELD"), ("TRIAL", "ACTUAL_END_FIELD"))

@@ -54,7 +54,7 @@ def read_c3d_raw(path: Path, layout: C3DLayout) -> dict[str, Any]:
     values = _values(_raw(path, layout), layout)  # (frames, values per frame), float64
     words = layout.frames, layout.points, 4
     points = values[:, :4 * layout.points].reshape(words)
-    scale = _point_scales(layout)
+    scale = point_scales(layout)
     xyz = points[:, :, :3] if h.is_float else points[:, :, :3] * scale[None, :, None]
     residuals = _residuals(points[:, :, 3], scale)
     xyz = np.where((residuals < 0)[:, :, None], np.nan, xyz)
@@ -114,9 +114,9 @@ def _numbers(layout: C3DLayout, group: str, *names: str) -> np.ndarray:
     return np.concatenate(out) if out else np.empty(0)
 
 
-def _point_scales(layout: C3DLayout) -> np.ndarray:
+def point_scales(layout: C3DLayout) -> np.ndarray:
     """``|scale|`` of every point, ``(points,)``: POINT:SCALE's value for the point if it has one for
-    each, else its first value, else the header's scale (as ezc3d)."""
+    each, else its first value, else the header's scale (as ezc3d); float64 of the stored float32."""
     values = np.abs(_numbers(layout, "POINT", "SCALE"))
     if values.size == 0:
         values = np.array([abs(layout.header.scale)])
