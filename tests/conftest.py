@@ -22,3 +22,14 @@ def data_path(rel: str) -> Path:
 @pytest.fixture
 def data() -> Path:
     return DATA
+
+
+def first_block_sections(data: bytes) -> dict[str, bytes]:
+    """The codec's sections of a ``.mcz`` in one block, or of its first block (blocked files name them
+    ``"0:name"``, see mocapz.format.blocks)."""
+    from mocapz.format.container import Container
+
+    sections = Container.from_bytes(data).sections
+    if "blk" not in sections:
+        return sections
+    return {k[2:]: v for k, v in sections.items() if k.startswith("0:")}

@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import DATA, data_path
+from conftest import DATA, data_path, first_block_sections
 
 import mocapz
 from mocapz import MarkerMotion, Motion, OptionError
@@ -68,7 +68,7 @@ def _packed(rel: str) -> bytes:
 
 def _rep(data: bytes) -> int:
     """The value representation the lossless codec chose (its ``rep`` section)."""
-    return Container.from_bytes(data).sections["rep"][0]
+    return first_block_sections(data)["rep"][0]
 
 
 def assert_same_motion(a: Motion | MarkerMotion, b: Motion | MarkerMotion) -> None:

@@ -218,7 +218,7 @@ def test_lifting_bound_and_round_trip() -> None:
     tol = np.abs(rng.normal(0.2, 0.05, size=(frames, cols))) + 0.01
     q, y = lifting.quantise(x, tol, 5)
     assert np.all(np.abs(x - y) <= tol * (1 + 1e-12))
-    back = lifting.decode(lifting.read(lifting.pack(q), frames, cols, 5), tol, 5)
+    back = lifting.decode(lifting.read(lifting.pack(q, frames, 5), frames, cols, 5), tol, 5)
     np.testing.assert_array_equal(back, y)
     small = 0.5 * tol.min() * rng.uniform(-1, 1, size=(frames, cols))  # within every dead zone: all zeros
     q0, y0 = lifting.quantise(small, tol, 5)

@@ -3,25 +3,31 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from os import PathLike
 from pathlib import Path
 from typing import Any
 
+from mocapz import blocking
 from mocapz.codecs import CodecInfo, get_codec
 from mocapz.errors import FormatError, OptionError
 from mocapz.format.container import Container
-from mocapz.format.extras import PREFIX, attach, sections_of, split_sections
+from mocapz.format.extras import PREFIX, attach, decode_extras, sections_of, split_sections
 from mocapz.format.layout import decode_header, encode_layout
 from mocapz.model.header import ClipHeader
 from mocapz.model.motion import AnyMotion, MarkerMotion, Motion
 
 
-def compress(motion: AnyMotion | str | PathLike[str], codec: str = "lossless", **options: Any) -> bytes:
+def compress(motion: AnyMotion | str | PathLike[str], codec: str = "lossless", *,
+             block: int | float | str | None = None, **options: Any) -> bytes:
     """Compress a motion into the bytes of a ``.mcz`` file.
 
     Args:
         motion: a :class:`~mocapz.Motion` or :class:`~mocapz.MarkerMotion`, or the path of a motion file.
         codec: a registered codec name, any case (``mocapz.codecs.codec_names()``).
+        block: the clip is coded as independent blocks of this length, so that a frame range decodes only
+            the blocks it needs (:func:`decompress` ``frames=``): frames (``240``), seconds (``"4s"``) or 0
+            for one block; None: the codec's default (``CodecInfo.block_seconds``).
         **options: that codec's options (``docs/options.md``; ``mocapz compress --codec NAME --help``).
 
     Raises:
@@ -34,16 +40,20 @@ def compress(motion: AnyMotion | str | PathLike[str], codec: str = "lossless", *
         from mocapz.io import load
 
         motion = load(Path(motion))
-    return compress_checked(motion, info, checked)
+    blocking.block_frames(block, 1.0, 0.0)  # checked before anything is encoded
+    return compress_checked(motion, info, checked, block)
 
 
-def compress_checked(motion: AnyMotion, info: CodecInfo, checked: dict[str, Any]) -> bytes:
+def compress_checked(motion: AnyMotion, info: CodecInfo, checked: dict[str, Any],
+                     block: int | float | str | None = None,
+                     progress: Callable[[int], None] | None = None) -> bytes:
     """:func:`compress` with options already checked by ``info.validate`` (the CLI and the batch workers check
-    them once, before any input is read, and pass them on)."""
+    them once, before any input is read, and pass them on); ``progress(frames)`` after each block."""
     if motion.kind not in info.kinds:
         raise OptionError(f"the {info.name} codec does not take {motion.kind} data "
                           f"(it takes {' and '.join(info.kinds)} data)")
-    sections = info.encode(motion, **checked)
+    per_block = blocking.block_frames(block, motion.frame_rate, info.block_seconds)
+    sections = blocking.encode(info.encode, motion, checked, per_block, progress)
     if any(key.startswith(PREFIX) for key in sections):
         raise FormatError(None, f"the {info.name} codec wrote a section named {PREFIX}*, which is reserved")
     sections = {**sections, **sections_of(motion)}  # the C3D extras, coded losslessly whatever the codec
@@ -60,9 +70,12 @@ def read_container(data: bytes, path: str | Path | None = None) -> tuple[Contain
     return box, header
 
 
-def decompress(data: bytes, path: str | Path | None = None) -> AnyMotion:
-    """Decode the bytes of a ``.mcz`` file back into a motion."""
+def decompress(data: bytes, path: str | Path | None = None, *,
+               frames: slice | range | tuple[int, int] | None = None) -> AnyMotion:
+    """Decode the bytes of a ``.mcz`` file back into a motion, or only ``frames`` of it (a slice: the values of
+    those frames in a full decode; a file coded in blocks decodes only the blocks they lie in)."""
     box, header = read_container(data, path)
+    start, stop = blocking.frame_range(frames, header.frames)
     try:
         info = get_codec(box.codec)
     except OptionError:
@@ -72,10 +85,29 @@ def decompress(data: bytes, path: str | Path | None = None) -> AnyMotion:
                                 f"(this mocapz has version {info.version})")
     codec_sections, extra_sections = split_sections(box.sections)
     try:
-        return attach(info.decode(codec_sections, header), extra_sections)
+        if box.blocked:
+            motion, shared = blocking.decode(info.decode, codec_sections, header, start, stop)
+            if shared:
+                raise FormatError(None, f"corrupted .mcz file (sections {sorted(shared)} outside its blocks)")
+            return _with_extras(motion, extra_sections, header, start, stop)
+        motion = info.decode(codec_sections, header)
+        if (start, stop) == (0, header.frames):
+            return attach(motion, extra_sections)
+        return _with_extras(motion.slice(start, stop), extra_sections, header, start, stop)
     except FormatError as exc:
         raise FormatError(path, exc.problem) from None
     except (ValueError, IndexError, KeyError, TypeError, OverflowError) as exc:
         # the checksum held, so this is damaged content written with a valid CRC, or a decoder bug
         raise FormatError(path, f"the {box.codec} decoder failed ({type(exc).__name__}: {exc}): the file's "
                                 f"content is damaged, or this is a mocapz bug (please report it)") from None
+
+
+def _with_extras(motion: AnyMotion, sections: dict[str, bytes], header: ClipHeader, start: int,
+                 stop: int) -> AnyMotion:
+    """Frames ``[start, stop)`` of the clip with its C3D extras (coded for the whole clip) cut alike."""
+    if not sections:
+        return motion
+    if not isinstance(motion, MarkerMotion):
+        raise FormatError(None, "corrupted .mcz file (C3D sections in a skeletal clip)")
+    motion.metadata["c3d"] = decode_extras(sections, header.frames, len(header.labels)).slice(start, stop)
+    return motion

@@ -29,6 +29,7 @@ CASES: list[tuple[str, str, int, int, str, dict]] = [
     ("amc_lossless", "cmu/asfamc/01_01.amc", 0, 30, "lossless", {}),
     ("c3d_lossless", "cmu/c3d/01_01.c3d", 0, 40, "lossless", {}),
     ("trc_lossless", "other/markers/btkdata/Gait.trc", 0, 30, "lossless", {}),
+    ("bvh_lossless_blocks", "cmu/bvh/09_06.bvh", 0, 100, "lossless", {"block": 40}),  # container version 2
     ("bvh_pga", "cmu/bvh/09_06.bvh", 0, 120, "pga", {}),
     ("bvh_pga_fixed", "cmu/bvh/09_06.bvh", 0, 120, "pga", {"geodesics": 6, "lod_root": 1, "lod_effectors": 1}),
     ("bvh_pga_distortion", "cmu/bvh/09_06.bvh", 0, 120, "pga", {"max_distortion": 0.5}),
@@ -43,6 +44,7 @@ CASES: list[tuple[str, str, int, int, str, dict]] = [
     ("bvh_segpca", "cmu/bvh/09_06.bvh", 0, 120, "segpca", {}),
     ("bvh_quant", "cmu/bvh/09_06.bvh", 0, 120, "quant", {}),
     ("c3d_quant", "cmu/c3d/01_01.c3d", 0, 60, "quant", {}),
+    ("c3d_quant_blocks", "cmu/c3d/01_01.c3d", 0, 90, "quant", {"block": 30}),
 ]
 
 

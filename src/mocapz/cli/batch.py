@@ -56,7 +56,8 @@ def summary_line(report: BatchReport, input_dir: Path, output_dir: Path) -> str:
 
 
 def run_batch_compress(input_dir: Path, output_dir: Path, codec: str, options: dict[str, Any], jobs: int | None,
-                       scheduler: str | None, force: bool, as_json: bool, say: Say | None = None) -> int:
+                       scheduler: str | None, force: bool, as_json: bool, say: Say | None = None,
+                       block: str | None = None) -> int:
     """Compress every clip under ``input_dir`` into ``output_dir``; return the exit code (0, or 1 if any failed).
 
     Args:
@@ -69,6 +70,7 @@ def run_batch_compress(input_dir: Path, output_dir: Path, codec: str, options: d
         force: overwrite existing outputs (otherwise those clips fail with "output exists").
         as_json: print one JSON object (totals, failures, per-clip results) instead of the summary line.
         say: messages (``-q`` / ``-v``).
+        block: the block length (``--block``).
 
     Errors about the whole batch (no such folder, no motion file in it, unknown codec, unreachable
     scheduler) are raised as :class:`~mocapz.errors.MocapzError` for the CLI's usual one-line report.
@@ -78,7 +80,7 @@ def run_batch_compress(input_dir: Path, output_dir: Path, codec: str, options: d
         raise MocapzError(f"{input_dir}: no motion files ({', '.join(BATCH_EXTENSIONS)}) in this folder")
     check_outputs([Path(j.output) for j in plan(input_dir, output_dir)], force, folders_made=True)
     report = compress_folder(input_dir, output_dir, codec, _absolute_paths(codec, options), jobs=jobs,
-                             scheduler=scheduler, force=force, progress=not (as_json or say.quiet))
+                             scheduler=scheduler, force=force, progress=not (as_json or say.quiet), block=block)
     root = Path(input_dir)
     for r in report.failed:
         click.echo(f"mocapz: error: {root / r.name}: {r.error}", err=True)

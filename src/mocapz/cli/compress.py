@@ -56,16 +56,22 @@ FORMATS = tuple(e.lstrip(".") for e in MOTION_EXTENSIONS)
               help="folder INPUT: worker processes (default: one per CPU; 1: serial)")
 @click.option("--scheduler", default=None, metavar="ADDRESS",
               help="folder INPUT: a Dask cluster (tcp://host:8786), or 'local' (needs mocapz[dask])")
+@click.option("--block", default=None, metavar="LENGTH",
+              help="code the clip in independent blocks of LENGTH (4s, 240 frames; 0: one block), so that "
+                   "decompress --frames decodes only the blocks it needs (default: the codec's)")
 @range_flags
 @unit_flag
 @message_flags
 @codec_flags()
 def compress(inputs: tuple[Path, ...], output: Path | None, to_stdout: bool, codec: str, fmt_name: str | None,
              asf: Path | None, force: bool, as_json: bool, jobs: int | None, scheduler: str | None,
-             frames: str | None, start: float | None, end: float | None, unit: str | None, quiet: bool,
-             verbose: bool, **params: Any) -> None:
+             block: str | None, frames: str | None, start: float | None, end: float | None, unit: str | None,
+             quiet: bool, verbose: bool, **params: Any) -> None:
     """Compress motion files (.bvh, .amc, .c3d, .trc) or folders of them into .mcz files."""
+    from mocapz.blocking import block_frames
+
     info, options = check_codec_options(codec, params)
+    block_frames(block, 1.0, 0.0)  # a bad --block fails before any input is read
     say = Say(quiet, verbose)
     if to_stdout:
         if output is not None and str(output) != "-":
@@ -90,10 +96,10 @@ def compress(inputs: tuple[Path, ...], output: Path | None, to_stdout: bool, cod
         from mocapz.cli.batch import run_batch_compress
 
         out_dir = output / path.name if (output is not None and len(inputs) > 1) else (output or path)
-        failed += run_batch_compress(path, out_dir, info.name, options, jobs, scheduler, force, as_json, say)
+        failed += run_batch_compress(path, out_dir, info.name, options, jobs, scheduler, force, as_json, say, block)
     files = [p for p in inputs if p not in folders]
-    results, bad = each_input(files, lambda p: _one(p, _output_for(p, output, many), info.name, options, asf,
-                                                    fmt_name, (frames, start, end), unit, force, say), many)
+    results, bad = each_input(files, lambda p: _one(p, _output_for(p, output, many), info.name, options, block,
+                                                    asf, fmt_name, (frames, start, end), unit, force, say), many)
     finish(results, many, as_json, failed + bad)
 
 
@@ -107,8 +113,8 @@ def _output_for(path: Path, output: Path | None, many: bool) -> Path:
     return output / compressed_name(path).name if many else output
 
 
-def _one(path: Path, out: Path, codec: str, options: dict[str, Any], asf: Path | None, fmt_name: str | None,
-         rng: tuple[str | None, float | None, float | None], unit: str | None, force: bool,
+def _one(path: Path, out: Path, codec: str, options: dict[str, Any], block: str | None, asf: Path | None,
+         fmt_name: str | None, rng: tuple[str | None, float | None, float | None], unit: str | None, force: bool,
          say: Say) -> dict[str, Any]:
     """Compress one input to ``out``; return the figures printed (and given with --json)."""
     from mocapz.api import compress_checked, decompress
@@ -130,9 +136,9 @@ def _one(path: Path, out: Path, codec: str, options: dict[str, Any], asf: Path |
     if info.lossy and motion.kind in info.kinds and not any(options.get(n) is not None for n in TARGET_NAMES):
         say.info(f"{name}: no target given, the {codec} codec meets its default target: {DEFAULT_TARGET}")
     t0 = time.perf_counter()
-    with say.progress(f"{name}: {codec}, {motion.n_frames} frames"):
+    with say.progress(f"{name}: {codec}", total=motion.n_frames) as advance:
         try:
-            data = compress_checked(motion, info, options)
+            data = compress_checked(motion, info, options, block, advance)
         except OptionError as exc:  # the options were checked: this one is about the file (exit code 1)
             raise MocapzError(exc.message, path=exc.path or name) from None
         except MocapzError as exc:

@@ -83,7 +83,9 @@ def _one(path: Path, root: Path | None, output: Path | None, many: bool, fmt_nam
         out = _output_for(path, root, output, many, fmt_name, header.source_format)
         if not is_stdout(out):
             check_outputs([out], force, folders_made=many)
-        motion = do_decompress(data, name)
+        # a file coded in blocks decodes only the blocks the range needs
+        motion = do_decompress(data, name, frames=frame_slice(*rng, header.frame_rate, header.frames))
+        rng = (None, None, None)
     motion = cut(motion, frame_slice(*rng, motion.frame_rate, motion.n_frames))
     elapsed = time.perf_counter() - t0
     if path.suffix.lower() == LIBRARY_SUFFIX or clip is not None:

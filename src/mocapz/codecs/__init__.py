@@ -33,6 +33,8 @@ class CodecInfo:
         options: the option declarations (the common targets first in every lossy codec).
         summary: one line on what the codec is for (help, docs).
         lossy: False only for codecs that give the values back exactly.
+        block_seconds: the default length of the independent blocks a clip is coded in (random access,
+            :mod:`mocapz.blocking`); 0: the whole clip in one block.
     """
 
     name: str
@@ -43,6 +45,7 @@ class CodecInfo:
     options: tuple[Option, ...]
     summary: str = ""
     lossy: bool = True
+    block_seconds: float = 0.0
 
     def validate(self, options: dict[str, Any]) -> dict[str, Any]:
         """Checked options (raises OptionError naming the option and what it accepts)."""

@@ -4,7 +4,7 @@ Byte layout (documented in docs/format.md)::
 
     offset  size  field
     0       4     magic b"MCZ\\x1a"
-    4       1     container format version (1)
+    4       1     container format version (1; 2: the clip is coded in blocks, see mocapz.format.blocks)
     5       1     codec name length n
     6       n     codec name, ASCII (e.g. "lossless", "pga", "patterns")
     6+n     1     codec version
@@ -22,10 +22,12 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from mocapz.errors import FormatError
+from mocapz.format.blocks import INDEX
 from mocapz.format.entropy import read_uvarint, write_uvarint
 
 MAGIC = b"MCZ\x1a"
-FORMAT_VERSION = 1
+FORMAT_VERSION = 1  # a clip in one piece
+BLOCKED_VERSION = 2  # a clip in independent blocks (the section ``blk`` indexes them)
 
 
 @dataclass
@@ -37,10 +39,16 @@ class Container:
     layout: bytes
     sections: dict[str, bytes] = field(default_factory=dict)
 
+    @property
+    def blocked(self) -> bool:
+        """True when the clip is coded in blocks (format version 2)."""
+        return INDEX in self.sections
+
     def to_bytes(self) -> bytes:
         name = self.codec.encode("ascii")
         out = bytearray(MAGIC)
-        out += bytes([FORMAT_VERSION, len(name)]) + name + bytes([self.codec_version])
+        version = BLOCKED_VERSION if self.blocked else FORMAT_VERSION
+        out += bytes([version, len(name)]) + name + bytes([self.codec_version])
         out += write_uvarint(len(self.layout)) + self.layout
         out += write_sections(self.sections)
         return seal(out)
@@ -62,8 +70,9 @@ class Container:
         if zlib.crc32(data[:-4]) & 0xFFFFFFFF != crc:
             raise FormatError(None, "corrupted or truncated .mcz file (checksum mismatch)")
         version = data[4]
-        if version != FORMAT_VERSION:
-            raise FormatError(None, f"unsupported .mcz format version {version} (this mocapz reads {FORMAT_VERSION})")
+        if version not in (FORMAT_VERSION, BLOCKED_VERSION):
+            raise FormatError(None, f"unsupported .mcz format version {version} (this mocapz reads "
+                                    f"{FORMAT_VERSION} and {BLOCKED_VERSION})")
         body = memoryview(data)[:-4]
         n = body[5]
         pos = 6 + n
@@ -78,7 +87,11 @@ class Container:
         sections, pos = read_sections(body, pos, ".mcz")
         if pos != len(body) or len(layout) != ln:
             raise FormatError(None, "corrupted .mcz file (length mismatch)")
-        return cls(codec, codec_version, layout, sections)
+        box = cls(codec, codec_version, layout, sections)
+        if box.blocked != (version == BLOCKED_VERSION):
+            raise FormatError(None, f"corrupted .mcz file (format version {version} with"
+                                    f"{'' if box.blocked else 'out'} a block index)")
+        return box
 
 
 def write_sections(sections: dict[str, bytes]) -> bytes:

@@ -183,6 +183,19 @@ class MarkerMotion:
         return replace(self, positions=self.positions[start:stop].copy(), metadata=meta)
 
 
+@dataclass
+class BlockOf:
+    """What an encoder may know about the clip a block comes from (``metadata["block_of"]`` of a block,
+    set by :mod:`mocapz.blocking`): the block is frames ``[start, stop)`` of ``clip``. Encoders use it to
+    decide as they would on the whole clip (foot contacts, energy budgets) and memoise what they compute on
+    the whole clip in ``cache``."""
+
+    clip: Any
+    start: int
+    stop: int
+    cache: dict[str, Any] = field(default_factory=dict)
+
+
 UNIT_CM = {"mm": 0.1, "cm": 1.0, "m": 100.0, "dm": 10.0, "in": 2.54, "inch": 2.54}
 
 AnyMotion = Motion | MarkerMotion

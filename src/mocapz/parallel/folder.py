@@ -36,7 +36,8 @@ def _largest_first(job: ClipJob) -> tuple[int, int]:
 def compress_folder(input_dir: str | os.PathLike[str], output_dir: str | os.PathLike[str], codec: str = "lossless",
                     options: dict[str, Any] | None = None, *, jobs: int | None = None, scheduler: str | None = None,
                     force: bool = False, progress: bool = False, pool: Pool | None = None,
-                    on_result: Callable[[ClipResult], None] | None = None) -> BatchReport:
+                    on_result: Callable[[ClipResult], None] | None = None,
+                    block: int | float | str | None = None) -> BatchReport:
     """Compress every clip of ``input_dir`` into a ``.mcz`` under ``output_dir`` (layout mirrored).
 
     Args:
@@ -48,21 +49,24 @@ def compress_folder(input_dir: str | os.PathLike[str], output_dir: str | os.Path
         pool: an already started :class:`Pool` to run on (then ``jobs`` and ``scheduler`` are ignored and
             the pool is left open, e.g. to run several batches on one Dask cluster).
         on_result: called in this process with each :class:`ClipResult` as it completes.
+        block: the length of the independent blocks every clip is coded in (:func:`mocapz.compress`).
 
     Returns:
         A :class:`BatchReport`; failed clips are in ``report.failed``, nothing is raised for them. Raises
         :class:`~mocapz.errors.MocapzError` only for problems with the whole batch (no such folder, unknown
         codec, unreachable scheduler...). The bytes written do not depend on ``jobs`` or ``scheduler``.
     """
+    from mocapz.blocking import block_frames
     from mocapz.codecs import get_codec
 
     options = get_codec(codec).validate(options or {})  # a bad codec or option: one error, not one per clip
+    block_frames(block, 1.0, 0.0)
     out_root = Path(output_dir)
     if out_root.exists() and not out_root.is_dir():
         raise MocapzError(f"{out_root}: output exists and is not a folder")
     jobs_list = plan(input_dir, out_root)
     out_root.mkdir(parents=True, exist_ok=True)
-    worker = functools.partial(compress_clip, codec=codec, options=options, force=force)
+    worker = functools.partial(compress_clip, codec=codec, options=options, force=force, block=block)
     results: list[ClipResult | None] = [None] * len(jobs_list)
     t0 = time.perf_counter()
     own = pool is None

@@ -37,7 +37,7 @@ from mocapz.errors import FormatError
 from mocapz.model.header import ClipHeader
 from mocapz.model.motion import AnyMotion, Motion
 
-VERSION = 2  # 2: the correction layer (codecs/correction)
+VERSION = 3  # 2: the correction layer (codecs/correction); 3: its knots and details in two streams
 DEFAULT_VARIANCE = 0.95
 OPTIONS: tuple[Option, ...] = TARGET_OPTIONS + (
     Option("variance", "float", "fraction of the variance kept", low=0.0, high=1.0, low_open=True,

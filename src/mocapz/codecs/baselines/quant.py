@@ -35,7 +35,7 @@ from mocapz.model.header import ClipHeader
 from mocapz.model.motion import AnyMotion, Motion
 from mocapz.model.skeleton import Skeleton
 
-VERSION = 2  # 2: the correction layer (codecs/correction)
+VERSION = 3  # 2: the correction layer (codecs/correction); 3: its knots and details in two streams
 OPTIONS = TARGET_OPTIONS  # max_error is the codec's own threshold (default: 1 mm); the others are searched
 SEARCH_STEPS = 48  # thresholds tried for a distortion / ARMS target: 2**-(i/2) of the cap, i < SEARCH_STEPS
 CODE_BIAS = 160  # step = 2 ** ((code - CODE_BIAS) / 8), code in 0..255 (steps 2^-20 .. 2^11.9)

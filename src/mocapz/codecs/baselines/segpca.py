@@ -43,7 +43,7 @@ from mocapz.errors import FormatError, OptionError
 from mocapz.model.header import ClipHeader
 from mocapz.model.motion import AnyMotion
 
-VERSION = 2  # 2: the correction layer (codecs/correction)
+VERSION = 3  # 2: the correction layer (codecs/correction); 3: its knots and details in two streams
 OPTIONS: tuple[Option, ...] = TARGET_OPTIONS + (
     Option("variance", "float", "fraction of each segment's variance kept", low=0.0, high=1.0, low_open=True,
            default=0.99),

@@ -35,7 +35,7 @@ from mocapz.errors import FormatError
 from mocapz.model.header import ClipHeader
 from mocapz.model.motion import AnyMotion
 
-VERSION = 2  # 2: the correction layer (codecs/correction)
+VERSION = 3  # 2: the correction layer (codecs/correction); 3: its knots and details in two streams
 DEFAULT_FACTOR = 4
 MAX_SEARCHED_FACTOR = 256
 OPTIONS: tuple[Option, ...] = TARGET_OPTIONS + (

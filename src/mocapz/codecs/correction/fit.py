@@ -15,7 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from mocapz.codecs.correction import bounds, lifting
+from mocapz.codecs.correction import bounds, context, lifting
 from mocapz.codecs.target import ErrorMetric, Errors, Target
 from mocapz.format.entropy import encode_int_matrix, pack_uint64
 from mocapz.metrics.contacts import find_contacts
@@ -66,6 +66,7 @@ class Correction:
     errors: Errors
     bound: float
     jitter: float = 0.0
+    added: float = 0.0  # acceleration energy added (file units squared, summed over frames and points)
 
 
 class Clip:
@@ -86,10 +87,17 @@ class Clip:
         self.rot, self.period = rotation_period(motion)
         self.layout = bounds.layout(motion, self.positions)
         self.levels = lifting_levels(motion.frame_rate)
-        with warnings.catch_warnings():  # markers missing in every frame
-            warnings.simplefilter("ignore", RuntimeWarning)
-            self.contacts = find_contacts(motion, self.positions, self.valid, motion.unit_cm) if hold_feet else None
-        self.body = body_height(self.positions, self.valid)
+        self.whole = context.block_of(motion)  # the clip this is a block of: decide as on the whole clip
+        if not hold_feet:
+            self.contacts = None
+        elif self.whole is not None:
+            self.contacts = context.contacts(self.whole)
+        else:
+            with warnings.catch_warnings():  # markers missing in every frame
+                warnings.simplefilter("ignore", RuntimeWarning)
+                self.contacts = find_contacts(motion, self.positions, self.valid, motion.unit_cm)
+        self.body = body_height(self.positions, self.valid) if self.whole is None \
+            else context.cached(self.whole, "body", body_height)
 
     def smooth_up_to(self) -> float:
         """The largest bound at which the added jitter is held under :data:`JITTER` (file units): 2 cm, or
@@ -128,13 +136,12 @@ class Clip:
         out = np.zeros(pos.shape[:2], dtype=bool)
         if pos.shape[0] < 3:
             return 0.0, out
-        ok = self.valid[2:] & self.valid[1:-1] & self.valid[:-2]
-        ea = np.where(ok, (np.diff(np.nan_to_num(self.positions), 2, axis=0) ** 2).sum(axis=2), 0.0)
+        ea, ok = context.acceleration_energy(self.positions, self.valid)
         eb = np.where(ok, (np.diff(np.nan_to_num(pos), 2, axis=0) ** 2).sum(axis=2), 0.0)
-        total = float(ea.sum())
+        total = context.energy_reference(self.whole, float(ea.sum()), JITTER)
         if total <= 0:
             return 0.0, out
-        jit = float(eb.sum()) / total - 1.0
+        jit = float(eb.sum()) / total - 1.0 if self.whole is None else (float(eb.sum()) - float(ea.sum())) / total
         if jit <= JITTER:
             return jit, out
         excess = (eb - ea).ravel()
@@ -148,6 +155,15 @@ class Clip:
         out[:-2] |= hit
         out[2:] |= hit
         return jit, out
+
+    def added_energy(self, pos: np.ndarray) -> float:
+        """Acceleration energy decoded positions ``(frames, points, 3)`` add to the original's (0 without a
+        clip around this block: nothing to account for)."""
+        if self.whole is None or pos.shape[0] < 3:
+            return 0.0
+        ea, ok = context.acceleration_energy(self.positions, self.valid)
+        eb = np.where(ok, (np.diff(np.nan_to_num(pos), 2, axis=0) ** 2).sum(axis=2), 0.0)
+        return float(eb.sum()) - float(ea.sum())
 
     def positions_of(self, values: np.ndarray) -> np.ndarray:
         """Positions ``(frames, points, 3)`` of decoded values ``(frames, columns)``."""
@@ -220,10 +236,10 @@ def fit(clip: Clip, base: np.ndarray, e: float) -> Correction:
     sections = {
         "c.codes": pack_uint64(codes.astype(np.uint64)),
         "c.levels": encode_int_matrix(np.diff(levels, axis=0, prepend=0)),
-        "c.res": lifting.pack(q),
+        "c.res": lifting.pack(q, x.shape[0], clip.levels),
     }
     size = sum(len(v) + 8 for v in sections.values())
-    return Correction(sections, size, pos, clip.metric.of_positions(pos), e, jit)
+    return Correction(sections, size, pos, clip.metric.of_positions(pos), e, jit, clip.added_energy(pos))
 
 
 def _settle(clip: Clip, x: np.ndarray, base: np.ndarray, t0: np.ndarray, levels: np.ndarray, cap: np.ndarray,

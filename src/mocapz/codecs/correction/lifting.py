@@ -23,7 +23,7 @@ from __future__ import annotations
 import numpy as np
 
 from mocapz.errors import FormatError
-from mocapz.format.entropy import decode_int_matrix, encode_int_matrix
+from mocapz.format.entropy import decode_int_matrix, encode_int_matrix, read_uvarint, write_uvarint
 
 BIG = 1e30  # tolerance standing for "any value will do" (a column that moves no point)
 SHRINK = 1.0  # tolerance factor per level above the finest
@@ -95,17 +95,36 @@ def quantise(x: np.ndarray, tol: np.ndarray, levels: int) -> tuple[np.ndarray, n
     return np.concatenate(parts), y[:frames]
 
 
-def pack(q: np.ndarray) -> bytes:
-    """The bytes of the integers of :func:`quantise` (range coder)."""
-    return encode_int_matrix(q) if q.shape[1] else b""
+def knot_count(frames: int, levels: int) -> int:
+    """Rows of coarse knots at the head of :func:`quantise`'s integers."""
+    lv, n = plan(frames, levels)
+    return len(range(0, n, 1 << lv))
+
+
+def pack(q: np.ndarray, frames: int, levels: int) -> bytes:
+    """The bytes of the integers of :func:`quantise` for a clip of ``frames`` frames: the coarse knots (time
+    differences, the first row absolute) and the details in two range-coded streams, uvarint length of the
+    first before it (their statistics differ: one stream's adaptive scales would fit neither)."""
+    if not q.shape[1]:
+        return b""
+    n0 = knot_count(frames, levels)
+    knots = encode_int_matrix(q[:n0])
+    return write_uvarint(len(knots)) + knots + encode_int_matrix(q[n0:])
 
 
 def read(data: bytes, frames: int, cols: int, levels: int) -> np.ndarray:
-    """The integers of :func:`pack` for a clip of ``frames`` x ``cols`` values (the stream's shape is checked
+    """The integers of :func:`pack` for a clip of ``frames`` x ``cols`` values (each stream's shape is checked
     before anything is allocated)."""
     if cols == 0:
         return np.zeros((0, 0), dtype=np.int64)
-    return decode_int_matrix(data, (plan(frames, levels)[1], cols))
+    n = plan(frames, levels)[1]
+    n0 = knot_count(frames, levels)
+    size, pos = read_uvarint(data, 0)
+    if pos + size > len(data):
+        raise FormatError(None, "corrupted correction stream (knot stream length)")
+    knots = decode_int_matrix(data[pos:pos + size], (n0, cols))
+    details = decode_int_matrix(data[pos + size:], (n - n0, cols))
+    return np.concatenate([knots, details])
 
 
 def decode(q_all: np.ndarray, tol: np.ndarray, levels: int) -> np.ndarray:

@@ -23,7 +23,7 @@ from typing import Any
 
 import numpy as np
 
-from mocapz.codecs.correction import bounds, lifting
+from mocapz.codecs.correction import bounds, context, lifting
 from mocapz.codecs.correction.fit import Clip, Correction, search, value_matrix
 from mocapz.codecs.gaps import pack_mask, unpack_mask
 from mocapz.codecs.options import Length, Option
@@ -124,6 +124,7 @@ def corrected(encode: Encoder, decode: Decoder, codec: str, declared: tuple[Opti
                               f"misses the target ({target.describe()}): it reaches distortion "
                               f"{cor.errors.distortion_pct:.4g} %, max error {cor.errors.max_error:.4g} file units "
                               "(the lossless codec gives the values back exactly)")
+        context.spend(clip.whole, cor.added)  # a block: what it used of the clip's jitter allowance
         head = write_uvarint(FORMAT) + write_uvarint(kind) + write_uvarint(clip.levels)
         return {**base_sections, "c.head": head, **cor.sections}
 

@@ -23,4 +23,5 @@ INFO = CodecInfo(
     options=(),
     summary="every file: the exact values back at the source's precision (integer prediction, range coding)",
     lossy=False,
+    block_seconds=1.0,  # random access: +1.5 % on 06_13.bvh (docs/benchmarks/speed.md)
 )

@@ -17,7 +17,7 @@ from mocapz.codecs.patterns.options import OPTIONS
 from mocapz.codecs.target import Target
 from mocapz.model.motion import AnyMotion
 
-VERSION = 2  # 2: the correction layer (codecs/correction)
+VERSION = 3  # 2: the correction layer (codecs/correction); 3: its knots and details in two streams
 
 
 

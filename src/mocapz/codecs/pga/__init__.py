@@ -16,7 +16,7 @@ from mocapz.codecs.pga.ratecontrol import encode
 from mocapz.codecs.target import Target
 from mocapz.model.motion import Motion
 
-VERSION = 3  # 2: the correction layer (codecs/correction); 3: the fast IK solver (iksolve), values ~1e-8 rad apart
+VERSION = 4  # 2: the correction layer; 3: the fast IK solver (iksolve); 4: correction knots and details in two streams
 
 SEARCH_FRAMES = 300  # longer clips: the model at its own settings (its search takes minutes), then the correction
 

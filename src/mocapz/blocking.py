@@ -1,0 +1,118 @@
+"""A clip coded as independent blocks of frames, so that a frame range decodes only the blocks it needs.
+
+Every block is a clip of its own for the codec (its own rate control, lifting and entropy state); a target
+met on every block is met on the clip: the max error is per point and frame, the distortion ``d`` and the
+ARMS are means whose per-block bounds add up (a block's deviation from its own mean is at most its deviation
+from the clip's). The byte layout is in :mod:`mocapz.format.blocks`.
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Callable
+from dataclasses import replace
+from typing import Any
+
+import numpy as np
+
+from mocapz.errors import OptionError
+from mocapz.format import blocks
+from mocapz.model.header import ClipHeader
+from mocapz.model.motion import AnyMotion, BlockOf, Motion
+
+Sections = dict[str, bytes]
+
+_SPEC = re.compile(r"^\s*(\d+(?:\.\d*)?|\.\d+)\s*(s|f|frames?|seconds?)?\s*$", re.IGNORECASE)
+
+
+def block_frames(spec: int | float | str | None, frame_rate: float, default_seconds: float) -> int:
+    """Frames per block for a ``--block`` value: frames (``240``, ``240f``), seconds (``4s``), ``0`` for the
+    whole clip in one block, None for the codec's default (``default_seconds``; 0: one block)."""
+    if spec is None:
+        return max(1, round(default_seconds * frame_rate)) if default_seconds > 0 else 0
+    if isinstance(spec, bool):
+        raise OptionError(f"--block: expected frames (240), seconds (4s) or 0, got {spec!r}")
+    if isinstance(spec, int | float):
+        text = str(spec)
+    else:
+        text = spec
+    m = _SPEC.match(text)
+    if not m:
+        raise OptionError(f"--block: expected frames (240), seconds (4s) or 0 (one block), got {spec!r}")
+    value, unit = float(m.group(1)), (m.group(2) or "f").lower()
+    if unit.startswith("s"):
+        return max(1, round(value * frame_rate)) if value > 0 else 0
+    if value != int(value):
+        raise OptionError(f"--block: a number of frames must be whole, got {spec!r}")
+    return int(value)
+
+
+def encode(encode_one: Callable[..., Sections], motion: AnyMotion, options: dict[str, Any], frames_per_block: int,
+           progress: Callable[[int], None] | None = None) -> Sections:
+    """The codec's sections for ``motion``: as one clip when it fits in a block (``frames_per_block`` 0 or more
+    than half the clip), else every block's sections and the index (:func:`mocapz.format.blocks.pack`).
+    ``progress(frames)`` is called after each block."""
+    n = motion.n_frames
+    if frames_per_block <= 0 or n < 2 * frames_per_block:
+        out = encode_one(motion, **options)
+        if progress:
+            progress(n)
+        return out
+    index = blocks.BlockIndex(n, frames_per_block)
+    parts = []
+    cache: dict[str, Any] = {}  # what encoders compute once on the whole clip (BlockOf.cache)
+    for i in range(index.count):
+        a, b = index.bounds(i)
+        piece = motion.slice(a, b)
+        piece = replace(piece, metadata={**piece.metadata, "block_of": BlockOf(motion, a, b, cache)})
+        parts.append(encode_one(piece, **options))
+        if progress:
+            progress(b - a)
+    return blocks.pack(index, parts)
+
+
+def decode(decode_one: Callable[[Sections, ClipHeader], AnyMotion], sections: Sections, header: ClipHeader,
+           start: int, stop: int) -> tuple[AnyMotion, Sections]:
+    """Frames ``[start, stop)`` of a blocked clip, decoding only the blocks they lie in; returns the motion and
+    the clip-wide sections (the ones outside the blocks)."""
+    index, parts, shared = blocks.unpack(sections, header.frames)
+    pieces = []
+    for i in index.covering(start, stop):
+        a, b = index.bounds(i)
+        piece = decode_one(parts[i], replace(header, frames=b - a))
+        if piece.n_frames != b - a:
+            raise ValueError(f"block {i} decoded to {piece.n_frames} frames, not {b - a}")
+        pieces.append(piece.slice(max(start - a, 0), min(stop, b) - a))
+    return joined(pieces), shared
+
+
+def joined(pieces: list[AnyMotion]) -> AnyMotion:
+    """The pieces one after the other, as one motion (the first one's attributes; a marker quantum kept only
+    if every piece has it)."""
+    first = pieces[0]
+    if len(pieces) == 1:
+        return first
+    values = np.concatenate([p.values for p in pieces])
+    if isinstance(first, Motion):
+        return replace(first, channels=values)
+    quantum = first.quantum if all(p.quantum == first.quantum for p in pieces) else None
+    return replace(first, positions=values, quantum=quantum)
+
+
+def frame_range(frames: slice | range | tuple[int, int] | None, n: int) -> tuple[int, int]:
+    """``(start, stop)`` of a frame selection in a clip of ``n`` frames (None: all; negative ends count
+    from the end, as in Python). OptionError when it selects nothing."""
+    if frames is None:
+        return 0, n
+    if isinstance(frames, tuple):
+        frames = slice(*frames)
+    if isinstance(frames, range):
+        if frames.step != 1:
+            raise OptionError("frames: a range with step 1")
+        frames = slice(frames.start, frames.stop)
+    if not isinstance(frames, slice) or frames.step not in (None, 1):
+        raise OptionError(f"frames: expected a slice of consecutive frames, got {frames!r}")
+    a, b, _ = frames.indices(n)
+    if b <= a:
+        raise OptionError(f"frames {frames.start}:{frames.stop} select no frame of this clip ({n} frames)")
+    return a, b

@@ -1,0 +1,80 @@
+"""The whole clip behind a block (:class:`~mocapz.model.motion.BlockOf`): a block is corrected as the whole clip
+would be, so that coding a clip in blocks costs little.
+
+Three decisions depend on more than the block's own frames: the foot contacts (a foot is planted within 5 cm of
+its lowest height *in the clip*: a block where the feet never touch the clip's floor has no contact), the body
+height (bounds when the length unit is unknown) and the added acceleration energy allowed (a fraction of the
+original's: a calm block alone would get almost none). Each is computed once on the whole clip (memoised in
+``BlockOf.cache``) and cut to the block. The jitter budget is spent block after block: a block may add what
+the clip's allowance for the frames up to its end leaves after the blocks before it (what a block leaves
+unused passes on), so the clip's added jitter stays within the allowed fraction of its energy.
+"""
+
+from __future__ import annotations
+
+import warnings
+from typing import Any
+
+import numpy as np
+
+from mocapz.codecs.target import ErrorMetric
+from mocapz.metrics.contacts import Contacts, find_contacts
+from mocapz.model.motion import AnyMotion, BlockOf
+
+
+def block_of(motion: AnyMotion) -> BlockOf | None:
+    """The clip ``motion`` is a block of, if any."""
+    ctx = motion.metadata.get("block_of")
+    return ctx if isinstance(ctx, BlockOf) else None
+
+
+def _whole(ctx: BlockOf) -> tuple[np.ndarray, np.ndarray]:
+    """The whole clip's positions ``(frames, points, 3)`` and present samples ``(frames, points)``."""
+    if "positions" not in ctx.cache:
+        metric = ErrorMetric(ctx.clip)
+        valid = np.ones(metric.positions.shape[:2], dtype=bool) if metric.valid is None else metric.valid
+        ctx.cache["positions"] = (metric.positions, valid)
+    out: tuple[np.ndarray, np.ndarray] = ctx.cache["positions"]
+    return out
+
+
+def contacts(ctx: BlockOf) -> Contacts:
+    """The whole clip's contacts, cut to the block's frames."""
+    if "contacts" not in ctx.cache:
+        pos, valid = _whole(ctx)
+        with warnings.catch_warnings():  # markers missing in every frame
+            warnings.simplefilter("ignore", RuntimeWarning)
+            ctx.cache["contacts"] = find_contacts(ctx.clip, pos, valid, ctx.clip.unit_cm)
+    whole: Contacts = ctx.cache["contacts"]
+    return Contacts(whole.up, whole.feet, whole.steps[ctx.start:max(ctx.stop - 1, ctx.start)])
+
+
+def cached(ctx: BlockOf, key: str, make: Any) -> Any:
+    """``make(positions, valid)`` on the whole clip, computed once."""
+    if key not in ctx.cache:
+        ctx.cache[key] = make(*_whole(ctx))
+    return ctx.cache[key]
+
+
+def acceleration_energy(a: np.ndarray, valid: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(frames - 2, points)`` squared second differences of positions ``a`` ``(frames, points, 3)`` and
+    where all three samples are present."""
+    ok = valid[2:] & valid[1:-1] & valid[:-2]
+    return np.where(ok, (np.diff(np.nan_to_num(a), 2, axis=0) ** 2).sum(axis=2), 0.0), ok
+
+
+def energy_reference(ctx: BlockOf | None, own: float, fraction: float) -> float:
+    """What the block's added acceleration energy must stay under ``fraction`` of: its own energy ``own``
+    alone, or within a clip the clip's energy up to the block's end (its share by frames) less what the
+    blocks before it added (over ``fraction``)."""
+    if ctx is None:
+        return own
+    total, n = cached(ctx, "energy", lambda a, v: (float(acceleration_energy(a, v)[0].sum()), a.shape[0]))
+    left = total * ctx.stop / max(n, 1) - ctx.cache.get("jitter_spent", 0.0) / fraction
+    return max(left, 1e-9 * total)
+
+
+def spend(ctx: BlockOf | None, added: float) -> None:
+    """Record the acceleration energy the block's chosen correction added (blocks are encoded in order)."""
+    if ctx is not None:
+        ctx.cache["jitter_spent"] = ctx.cache.get("jitter_spent", 0.0) + max(added, 0.0)
