@@ -95,21 +95,26 @@ def quantise(x: np.ndarray, tol: np.ndarray, levels: int) -> tuple[np.ndarray, n
     return np.concatenate(parts), y[:frames]
 
 
-def knot_count(frames: int, levels: int) -> int:
-    """Rows of coarse knots at the head of :func:`quantise`'s integers."""
+def row_groups(frames: int, levels: int) -> list[int]:
+    """Rows of each part of :func:`quantise`'s integers: the coarse knots, then the details of each level,
+    coarse to fine."""
     lv, n = plan(frames, levels)
-    return len(range(0, n, 1 << lv))
+    return [len(range(0, n, 1 << lv))] + [len(range(1 << lv_, n - 1, 2 << lv_)) for lv_ in range(lv - 1, -1, -1)]
 
 
 def pack(q: np.ndarray, frames: int, levels: int) -> bytes:
-    """The bytes of the integers of :func:`quantise` for a clip of ``frames`` frames: the coarse knots (time
-    differences, the first row absolute) and the details in two range-coded streams, uvarint length of the
-    first before it (their statistics differ: one stream's adaptive scales would fit neither)."""
+    """The bytes of the integers of :func:`quantise` for a clip of ``frames`` frames: one range-coded stream
+    per part (the coarse knots, time differences with the first row absolute; then each level's details),
+    each after its uvarint byte length. The parts' magnitudes differ by orders: one stream's adaptive scales
+    would mix them."""
     if not q.shape[1]:
         return b""
-    n0 = knot_count(frames, levels)
-    knots = encode_int_matrix(q[:n0])
-    return write_uvarint(len(knots)) + knots + encode_int_matrix(q[n0:])
+    out, pos = bytearray(), 0
+    for rows in row_groups(frames, levels):
+        part = encode_int_matrix(q[pos:pos + rows])
+        out += write_uvarint(len(part)) + part
+        pos += rows
+    return bytes(out)
 
 
 def read(data: bytes, frames: int, cols: int, levels: int) -> np.ndarray:
@@ -117,14 +122,16 @@ def read(data: bytes, frames: int, cols: int, levels: int) -> np.ndarray:
     before anything is allocated)."""
     if cols == 0:
         return np.zeros((0, 0), dtype=np.int64)
-    n = plan(frames, levels)[1]
-    n0 = knot_count(frames, levels)
-    size, pos = read_uvarint(data, 0)
-    if pos + size > len(data):
-        raise FormatError(None, "corrupted correction stream (knot stream length)")
-    knots = decode_int_matrix(data[pos:pos + size], (n0, cols))
-    details = decode_int_matrix(data[pos + size:], (n - n0, cols))
-    return np.concatenate([knots, details])
+    parts, pos = [], 0
+    for rows in row_groups(frames, levels):
+        size, pos = read_uvarint(data, pos)
+        if pos + size > len(data):
+            raise FormatError(None, "corrupted correction stream (part length)")
+        parts.append(decode_int_matrix(data[pos:pos + size], (rows, cols)))
+        pos += size
+    if pos != len(data):
+        raise FormatError(None, "corrupted correction stream (trailing bytes)")
+    return np.concatenate(parts)
 
 
 def decode(q_all: np.ndarray, tol: np.ndarray, levels: int) -> np.ndarray:
