@@ -1,18 +1,29 @@
-"""Speed benchmark (issue 12): encode (fixed settings and with a target), full decode and the whole
-``mocapz compress`` command, per codec, as frames/s and as a multiple of the lossless codec in the same run.
+"""Speed benchmark (issue 12): encode (fixed settings and with a target), full decode, the whole
+``mocapz compress`` command, seek (a 20-frame range) and the size cost of blocks, per codec, as frames/s and as
+a multiple of the lossless codec in the same run.
 
 Clips: the CMU BVH clips of ../shared/data/cmu/bvh (``--quick``: 3 of them) and a synthetic 10-minute clip
 (72,000 frames at 120 fps: the motion frames of 06_13 played forwards and backwards until long enough, so
 the motion stays continuous). Every measurement runs in its own process (``--worker``), on one thread
 (``OPENBLAS_NUM_THREADS=1`` and friends), and reports its peak resident memory (``ru_maxrss``: the Python
 interpreter, numpy/scipy and the loaded clip included). A call that runs over ``--time-limit`` seconds is
-stopped and reported as such. Random access ("seek") is not implemented yet (issue 12), so it is not measured.
+stopped and reported as such.
+
+Seek and blocks (its own process per codec and clip, ``mode="seek"``): the clip is compressed at the fixed
+settings with the codec's default blocks, with ``block="1s"``, ``block="4s"`` and ``block=0`` (one block). For
+the default and the 1-s file: the full decode and ``decompress(data, frames=slice(a, a + 20))`` at 5 starts
+``a`` spread evenly from the first frame to the last 20, timed in interleaved rounds (the full decode, then
+the 5 seeks; at least ``--repeat`` rounds, more while they fill 0.5 s, at most 20), each call's best kept; the
+seek is the median of the 5, reported as frames/s of the 20 frames and as a percentage of the full decode of
+the same file. Block cost: the size of the 1-s and the 4-s file over the one-block file, minus 1, in %. That
+process is stopped after ``--time-limit * (4 * --repeat + 6) + 60`` seconds.
 
 Usage::
 
     .venv/bin/python scripts/speed.py                    # every CMU clip + the 10-minute clip, every codec
     .venv/bin/python scripts/speed.py --quick            # 3 clips + the 10-minute clip
     .venv/bin/python scripts/speed.py --clips 09_06,06_13 --codecs lossless,pga --repeat 3 --out /tmp/s.md
+    .venv/bin/python scripts/speed.py --clips 05_02 --codecs lossless,quant --repeat 1 --no-synthetic --out /tmp/s.md
 
 Writes docs/benchmarks/speed.md (or --out) and prints it.
 """
@@ -23,6 +34,7 @@ import argparse
 import json
 import os
 import resource
+import statistics
 import subprocess
 import sys
 import tempfile
@@ -39,6 +51,10 @@ TARGET = {"max_error": "1cm"}
 QUICK = ("09_06", "12_01", "02_05")
 SYNTH_SOURCE, SYNTH_FRAMES = "06_13", 72_000
 ONE_THREAD = {"OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
+SEEK_FRAMES, SEEK_STARTS = 20, 5  # seek: 20-frame ranges at 5 starts spread over the clip
+BLOCKS: dict[str, int | str | None] = {"default": None, "1s": "1s", "4s": "4s", "one": 0}  # block= of each file
+SEEKED = ("default", "1s")  # the files whose seek is timed
+ROUNDS_FILL_S, MAX_ROUNDS = 0.5, 20  # seek: more rounds than --repeat while they fill 0.5 s
 
 
 # ---------------------------------------------------------------- worker (one measurement, own process)
@@ -50,6 +66,8 @@ def worker(spec: dict[str, Any]) -> dict[str, Any]:
     motion = mocapz.load(spec["path"])
     out: dict[str, Any] = {"frames": motion.n_frames, "rss_loaded_mb": _rss_mb()}
     opts = dict(FIXED.get(spec["codec"], {}))
+    if spec["mode"] == "seek":
+        return {**out, **seek_worker(motion, spec["codec"], opts, spec["repeat"]), "rss_peak_mb": _rss_mb()}
     if spec["mode"] == "target":
         t = time.perf_counter()
         data = mocapz.compress(motion, codec=spec["codec"], **TARGET)
@@ -66,6 +84,63 @@ def worker(spec: dict[str, Any]) -> dict[str, Any]:
         out.update(encode_s=min(enc), decode_s=min(dec))
     out.update(bytes=len(data), rss_peak_mb=_rss_mb())
     return out
+
+
+def seek_starts(frames: int, length: int = SEEK_FRAMES, count: int = SEEK_STARTS) -> list[int]:
+    """``count`` first frames of ``length``-frame ranges spread evenly from the clip's start to its end."""
+    last = max(frames - length, 0)
+    return sorted({round(i * last / (count - 1)) for i in range(count)}) if count > 1 else [0]
+
+
+def seek_worker(motion: Any, codec: str, opts: dict[str, Any], repeat: int) -> dict[str, Any]:
+    """Every file of ``BLOCKS`` (bytes, encode seconds, its blocks); for those of ``SEEKED`` also the full decode
+    and the seek (median over the starts of the best of ``repeat`` of ``decompress(frames=slice(a, a + 20))``)."""
+    import mocapz  # noqa: PLC0415
+    from mocapz.format import blocks  # noqa: PLC0415
+    from mocapz.format.container import Container  # noqa: PLC0415
+
+    n = motion.n_frames
+    out: dict[str, Any] = {"frame_rate": motion.frame_rate}
+    for label, block in BLOCKS.items():
+        t = time.perf_counter()
+        data = mocapz.compress(motion, codec=codec, block=block, **opts)
+        rec: dict[str, Any] = {"encode_s": time.perf_counter() - t, "bytes": len(data)}
+        box = Container.from_bytes(data)
+        if box.blocked:
+            index = blocks.unpack(box.sections, n)[0]
+            rec.update(blocks=index.count, block_frames=index.block_frames)
+        else:
+            rec.update(blocks=1, block_frames=n)
+        if label in SEEKED:
+            length = min(SEEK_FRAMES, n)
+            mocapz.decompress(data, frames=slice(0, length))  # untimed: lazy imports, caches
+            starts = seek_starts(n, length)
+            decode_s, times, rounds = seek_timings(data, starts, length, repeat)
+            rec.update(decode_s=decode_s, seek_frames=length, seek_starts=starts, seek_all_s=times,
+                       seek_s=statistics.median(times), rounds=rounds)
+        out[label] = rec
+    return out
+
+
+def seek_timings(data: bytes, starts: list[int], length: int, repeat: int) -> tuple[float, list[float], int]:
+    """The full decode of ``data`` and the decode of ``length`` frames at every start, timed in rounds (each
+    round: the full decode, then every start), at least ``repeat`` rounds and more while they fill
+    ``ROUNDS_FILL_S`` (at most ``MAX_ROUNDS``): ``(best full decode, best of every start, rounds)`` in seconds.
+    Interleaved so that a slow spell of a shared machine weighs on all of them alike."""
+    import mocapz  # noqa: PLC0415
+
+    ranges = [None, *(slice(a, a + length) for a in starts)]
+    best = [float("inf")] * len(ranges)
+    rounds, t0 = 0, time.perf_counter()
+    while rounds < repeat or (rounds < MAX_ROUNDS and time.perf_counter() - t0 < ROUNDS_FILL_S):
+        for i, frames in enumerate(ranges):
+            t = time.perf_counter()
+            part = mocapz.decompress(data, frames=frames)
+            best[i] = min(best[i], time.perf_counter() - t)
+            if frames is not None and part.n_frames != length:
+                raise RuntimeError(f"decompress(frames={frames.start}:{frames.stop}) gave {part.n_frames} frames")
+        rounds += 1
+    return best[0], best[1:], rounds
 
 
 def _rss_mb() -> float:
@@ -137,6 +212,8 @@ def measure(clips: list[tuple[str, Path]], codecs: list[str], repeat: int, limit
                 row["target"] = ({"na": True} if codec == "lossless" else
                                  run_worker({"path": str(path), "codec": codec, "mode": "target"}, limit + 30))
                 row["cli"] = run_cli(path, codec, repeat, limit + 30, tmp)
+                row["seek"] = run_worker({"path": str(path), "codec": codec, "mode": "seek", "repeat": repeat},
+                                         limit * (4 * repeat + 6) + 60)
                 row["frames"] = row["fixed"].get("frames") or row["target"].get("frames")
                 rows.append(row)
                 print(f"{name} {codec}: {json.dumps(row)}", file=sys.stderr, flush=True)
@@ -154,12 +231,9 @@ def _cell(row: dict[str, Any], what: str, ref: dict[str, Any] | None) -> str:
     part, key = {"enc": ("fixed", "encode_s"), "dec": ("fixed", "decode_s"), "tgt": ("target", "encode_target_s"),
                  "cli": ("cli", "cli_s")}[what]
     m = row[part]
-    if m.get("na"):
-        return "n/a"
-    if "over" in m:
-        return f"over {m['over']:.0f} s"
-    if "error" in m:
-        return "refused (TargetError)" if "TargetError" in m["error"] else f"error: {m['error']}"
+    why = _failed(m)
+    if why:
+        return why
     fps = _fps(m.get("frames", row["frames"]), m.get(key))
     text = f"{fps:,.0f}"
     if what == "dec":
@@ -217,6 +291,119 @@ def table(rows: list[dict[str, Any]], with_clip: bool) -> list[str]:
     return lines
 
 
+def _failed(m: dict[str, Any]) -> str | None:
+    """Why a measurement has no figures (n/a, over the limit, an error), or None."""
+    if m.get("na"):
+        return "n/a"
+    if "over" in m:
+        return f"over {m['over']:.0f} s"
+    if "error" in m:
+        return "refused (TargetError)" if "TargetError" in m["error"] else f"error: {m['error']}"
+    return None
+
+
+def _pct(x: float) -> str:
+    return f"{x:.1f} %" if abs(x) >= 1 else f"{x:.2f} %"
+
+
+def _blocks_text(rec: dict[str, Any], frame_rate: float) -> str:
+    if "blocks_text" in rec:
+        return str(rec["blocks_text"])
+    if rec["blocks"] <= 1:
+        return "one block"
+    return f"{rec['block_frames'] / frame_rate:g} s ({rec['blocks']} blocks)"
+
+
+def _one_block(rec: dict[str, Any]) -> bool:
+    """The file is one block (over several clips: every clip's)."""
+    return bool(rec.get("one_block", rec["blocks"] <= 1))
+
+
+def seek_fps(m: dict[str, Any], label: str) -> float | None:
+    """Frames/s of the 20-frame seek in file ``label`` of a seek measurement (None: not measured)."""
+    rec = m.get(label) or {}
+    return _fps(rec.get("seek_frames"), rec.get("seek_s"))
+
+
+def seek_pct(m: dict[str, Any], label: str) -> float | None:
+    """The seek's time as a percentage of the full decode of the same file."""
+    rec = m.get(label) or {}
+    return 100.0 * rec["seek_s"] / rec["decode_s"] if rec.get("seek_s") and rec.get("decode_s") else None
+
+
+def block_cost(m: dict[str, Any], label: str) -> float | None:
+    """The size of file ``label`` over the one-block file's, minus 1, in percent."""
+    one, rec = (m.get("one") or {}).get("bytes"), (m.get(label) or {}).get("bytes")
+    return 100.0 * (rec / one - 1.0) if one and rec else None
+
+
+def seek_cells(row: dict[str, Any], ref: dict[str, Any] | None) -> list[str]:
+    """The seek table's cells of one row after clip, codec and frames."""
+    m = row["seek"]
+    why = _failed(m)
+    if why:
+        return [why] * 7
+    cells = [_blocks_text(m["default"], m["frame_rate"])]
+    for label in SEEKED:
+        fps = seek_fps(m, label)
+        text = f"{fps:,.0f}" if fps else "-"
+        rfps = seek_fps(ref["seek"], "default") if ref is not None else None
+        if fps and rfps:
+            text += f" x{fps / rfps:.2f}"
+        if label != "default" and _one_block(m[label]):
+            text += " (one block)"
+        pct = seek_pct(m, label)
+        cells += [text, _pct(pct) if pct is not None else "-"]
+    for label in ("1s", "4s"):
+        cost = block_cost(m, label)
+        text = f"{cost:+.1f} %" if cost is not None else "-"
+        cells.append(text + (" (one block)" if _one_block(m[label]) else ""))
+    return cells
+
+
+def summarise_seek(rows: list[dict[str, Any]], codecs: list[str]) -> list[dict[str, Any]]:
+    """One row per codec over the CMU clips where the seek measurement finished: times and bytes added up."""
+    out = []
+    for codec in codecs:
+        done = [r for r in rows if r["codec"] == codec and _failed(r["seek"]) is None]
+        if not done:
+            mine = [r for r in rows if r["codec"] == codec]
+            if mine:
+                out.append({"clip": "CMU clips", "codec": codec, "frames": None, "seek": dict(mine[0]["seek"])})
+            continue
+        agg: dict[str, Any] = {"frame_rate": done[0]["seek"]["frame_rate"]}
+        for label in BLOCKS:
+            recs = [r["seek"][label] for r in done]
+            a: dict[str, Any] = {k: sum(rec[k] for rec in recs)
+                                 for k in ("bytes", "blocks", "decode_s", "seek_s", "seek_frames") if k in recs[0]}
+            lengths = sorted({round(rec["block_frames"] / r["seek"]["frame_rate"], 3)
+                              for r, rec in zip(done, recs, strict=True) if rec["blocks"] > 1})
+            a["one_block"] = not lengths
+            a["blocks_text"] = f"{'/'.join(f'{x:g}' for x in lengths)} s ({a['blocks']} blocks)" if lengths \
+                else "one block"
+            agg[label] = a
+        out.append({"clip": "CMU clips", "codec": codec, "frames": sum(r["seek"]["frames"] for r in done),
+                    "seek": agg})
+    return out
+
+
+def seek_table(rows: list[dict[str, Any]], with_clip: bool) -> list[str]:
+    head = ("| clip " if with_clip else "") + "| codec | frames | default blocks | seek 20 frames, default blocks " \
+        "| % of a full decode | seek 20 frames, 1-s blocks | % of a full decode | size, 1-s blocks | size, 4-s blocks |"
+    lines = [head, "|" + "---|" * (head.count("|") - 1)]
+    refs = {r["clip"]: r for r in rows if r["codec"] == "lossless" and _failed(r["seek"]) is None}
+    for r in rows:
+        frames = f"{r['frames']:,}" if r["frames"] else "-"
+        cells = [r["codec"], frames, *seek_cells(r, refs.get(r["clip"]))]
+        lines.append(("| " + r["clip"] + " " if with_clip else "") + "| " + " | ".join(cells) + " |")
+    return lines
+
+
+def _with_seek(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """The rows, each with a seek measurement (a run saved before seek was measured: "n/a")."""
+    return [r if "seek" in r else {**r, "seek": {"na": True}} for r in rows]
+
+
 def render(rows: list[dict[str, Any]], codecs: list[str], args: argparse.Namespace, started: str,
            info: dict[str, Any], wall: float) -> str:
     cmu = [r for r in rows if r["clip"] != "synthetic 10 min"]
@@ -236,28 +423,50 @@ def render(rows: list[dict[str, Any]], codecs: list[str], args: argparse.Namespa
         "Python's start-up and reading the file. Memory: peak resident set of the measuring process "
         "(interpreter, numpy and the loaded clip included; the second figure is the same process after "
         "loading the clip, before any codec ran).", "",
-        "**Seek (random access) is not implemented yet** (`decompress(data, frames=slice(a, b))`, issue 12), "
-        "so it is not measured: today reading any frame decodes the whole clip.", "",
+        f"Seek and blocks (the tables *seek and blocks*, their own process per codec and clip): the clip is "
+        f"compressed at the fixed settings with the codec's default blocks (`default blocks`: what the file "
+        f"holds; the lossy codecs' default is one block, so their seek decodes the whole clip), with "
+        f"`block=\"1s\"`, `block=\"4s\"` and `block=0` (one block). Seek: `mocapz.decompress(data, "
+        f"frames=slice(a, a + {SEEK_FRAMES}))` at {SEEK_STARTS} starts `a` spread evenly from the first frame "
+        f"to the last {SEEK_FRAMES}, timed with the full decode of the same file in interleaved rounds (the "
+        f"full decode, then the {SEEK_STARTS} seeks; at least {args.repeat} round{'s' * (args.repeat != 1)}, "
+        f"more while they fill {ROUNDS_FILL_S:g} s, at most {MAX_ROUNDS}), each call's best kept; the seek is "
+        f"the median of the {SEEK_STARTS}, as frames/s of the {SEEK_FRAMES} frames (`xN`: over the lossless "
+        f"codec's seek with its default blocks, same clip) and as a percentage of that full decode. Reading "
+        f"and checking the whole file (CRC-32, section table) is part of every seek. A clip shorter than two "
+        f"blocks is coded as one block (\"(one block)\": so at 1-s blocks every clip under 2 s). Size: the "
+        f"1-s and the 4-s file's bytes over the one-block file's, minus 1. Over the CMU clips, the times and "
+        f"the bytes of the clips where the measurement finished are added up. That process is stopped after "
+        f"{args.time_limit * (4 * args.repeat + 6) + 60:.0f} s.", "",
         "## Goals of issue 12", "",
         "| goal | where to read it |", "|---|---|",
         "| encode with a target >= 2,000 frames/s (pga, patterns), whole command | column `mocapz compress` does "
         "not use a target; see `encode, max error 1 cm` |",
         "| encode at fixed settings >= 10,000 frames/s; lossless and quant >= 20,000 | `encode, fixed` |",
         "| decode >= 50,000 frames/s (<= 20 us/frame) every codec; <= 10 us lossless and quant | `decode` |",
-        "| memory under 300 MB for a 5,000-frame clip | `peak memory` (06_13, 4,906 frames) |", "",
+        "| memory under 300 MB for a 5,000-frame clip | `peak memory` (06_13, 4,906 frames) |",
+        f"| seek: {SEEK_FRAMES} frames of a 5,000-frame clip cost <= 5 % of a full decode | seek and blocks, "
+        "`% of a full decode` (06_13, 4,906 frames; the 10-minute clip) |",
+        "| blocks cost under 3 % of the size at the default block length | seek and blocks, `size, 1-s blocks` "
+        "(the lossless codec's default; the lossy codecs default to one block) |", "",
     ]
     if cmu:
         lines += ["## CMU clips, all together", "", "Frames/s over the clips where the call finished.", ""]
         lines += table(summarise(cmu, codecs), with_clip=False) + [""]
+        lines += ["### Seek and blocks, CMU clips all together", ""]
+        lines += seek_table(summarise_seek(_with_seek(cmu), codecs), with_clip=False) + [""]
     if synth:
         lines += [f"## Synthetic 10-minute clip ({SYNTH_FRAMES:,} frames at 120 fps, {SYNTH_SOURCE} looped)", ""]
         lines += table(synth, with_clip=False) + [""]
+        lines += ["### Seek and blocks, synthetic 10-minute clip", ""]
+        lines += seek_table(_with_seek(synth), with_clip=False) + [""]
     if cmu:
         lines += ["## Per clip", ""] + table(cmu, with_clip=True) + [""]
+        lines += ["### Seek and blocks, per clip", ""] + seek_table(_with_seek(cmu), with_clip=True) + [""]
     return "\n".join(lines)
 
 
-def main() -> int:
+def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--quick", action="store_true", help=f"3 CMU clips ({', '.join(QUICK)}) + the 10-minute clip")
     ap.add_argument("--clips", help="comma-separated CMU clip names (e.g. 09_06,06_13); 'none' for no CMU clip")
@@ -268,11 +477,11 @@ def main() -> int:
     ap.add_argument("--out", type=Path, default=OUT)
     ap.add_argument("--render", type=Path, help="write the report again from a run's .json (no measuring)")
     ap.add_argument("--worker", help=argparse.SUPPRESS)
-    args = ap.parse_args()
+    args = ap.parse_args(argv)
     if args.worker:
         print(json.dumps(worker(json.loads(args.worker))))
         return 0
-    args.argv = sys.argv[1:]
+    args.argv = sys.argv[1:] if argv is None else list(argv)
     if args.render:
         saved = json.loads(args.render.read_text())
         args.argv = saved.get("argv", args.argv)
