@@ -3,29 +3,62 @@
 from __future__ import annotations
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from mocapz.model.skeleton import Skeleton
 
 
+def axis_rotations(angle: np.ndarray, axis: int) -> np.ndarray:
+    """Rotation matrices ``(..., 3, 3)`` about coordinate axis ``axis`` (0 x, 1 y, 2 z) by ``angle`` ``(...)``
+    radians."""
+    c, s = np.cos(angle), np.sin(angle)
+    out = np.zeros((*angle.shape, 3, 3))
+    i, k = (axis + 1) % 3, (axis + 2) % 3
+    out[..., axis, axis] = 1.0
+    out[..., i, i] = c
+    out[..., k, k] = c
+    out[..., i, k] = -s
+    out[..., k, i] = s
+    return out
+
+
+def euler_rotations(angles: np.ndarray, order: str) -> np.ndarray:
+    """Intrinsic Euler rotations ``(..., 3, 3)`` from ``angles`` ``(..., len(order))`` radians about the axes
+    of ``order`` in matrix-product order (``"ZXY"``: ``R = Rz(a0) @ Rx(a1) @ Ry(a2)``, as BVH applies its
+    channels; scipy's ``Rotation.from_euler("ZXY", ...)`` to float rounding)."""
+    r = axis_rotations(angles[..., 0], "XYZ".index(order[0].upper()))
+    for k in range(1, len(order)):
+        # R @ R_axis(t) mixes two columns of R: (i, k) -> (c i + s k, c k - s i)
+        axis = "XYZ".index(order[k].upper())
+        i, j = (axis + 1) % 3, (axis + 2) % 3
+        c, s = np.cos(angles[..., k])[..., None], np.sin(angles[..., k])[..., None]
+        ci, cj = r[..., :, i].copy(), r[..., :, j].copy()
+        r[..., :, i] = c * ci + s * cj
+        r[..., :, j] = c * cj - s * ci
+    return r
+
+
 def local_rotations(skeleton: Skeleton, channels: np.ndarray) -> np.ndarray:
-    """Local rotation matrices ``(frames, joints, 3, 3)`` from channel values ``(frames, channels)``."""
+    """Local rotation matrices ``(frames, joints, 3, 3)`` from channel values ``(frames, channels)``: the joints
+    of one rotation order in one vectorised step."""
     frames = channels.shape[0]
     out = np.broadcast_to(np.eye(3), (frames, skeleton.n_joints, 3, 3)).copy()
     scale = np.pi / 180.0 if skeleton.angle_unit == "deg" else 1.0
     axis = skeleton.axis
     assert axis is not None
+    by_order: dict[str, tuple[list[int], list[list[int]]]] = {}
     for j, (sl, chs, order) in enumerate(
         zip(skeleton.channel_slices(), skeleton.channels, skeleton.rotation_order, strict=True)
     ):
-        if not order:
-            continue
-        cols = [sl.start + chs.index(f"{a}rotation") for a in order]
-        angles = channels[:, cols] * scale
-        r = Rotation.from_euler(order.upper(), angles).as_matrix()
-        if not np.array_equal(axis[j], np.eye(3)):
-            r = axis[j] @ r @ axis[j].T
-        out[:, j] = r
+        if order:
+            joints, cols = by_order.setdefault(order, ([], []))
+            joints.append(j)
+            cols.append([sl.start + chs.index(f"{a}rotation") for a in order])
+    for order, (joints, cols) in by_order.items():
+        out[:, joints] = euler_rotations(channels[:, np.array(cols)] * scale, order)
+    turned = [j for j in range(skeleton.n_joints) if not np.array_equal(axis[j], np.eye(3))]
+    if turned:  # ASF joint axes: the rotation is about the joint's own frame
+        a = axis[turned]
+        out[:, turned] = a @ out[:, turned] @ np.swapaxes(a, -1, -2)
     return out
 
 
