@@ -211,7 +211,7 @@ def test_wrong_magic(small: bytes) -> None:
             mocapz.decompress(_refresh_crc(magic + small[4:]))
 
 
-@pytest.mark.parametrize("version", [0, 3, 255])
+@pytest.mark.parametrize("version", [0, 4, 255])
 def test_unsupported_version(small: bytes, version: int) -> None:
     data = _refresh_crc(small[:4] + bytes([version]) + small[5:])
     with pytest.raises(FormatError, match=f"unsupported .mcz format version {version}"):

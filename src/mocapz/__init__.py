@@ -22,8 +22,9 @@ from mocapz.io import load, save  # noqa: E402
 from mocapz.metrics.figures import evaluate  # noqa: E402
 from mocapz.model.motion import MarkerMotion, Motion  # noqa: E402
 from mocapz.model.skeleton import Skeleton  # noqa: E402
+from mocapz.stream import StreamDecoder, StreamEncoder  # noqa: E402
 
 __all__ = [
-    "FormatError", "MarkerMotion", "MocapzError", "Motion", "OptionError", "Skeleton", "TargetError",
-    "__version__", "compress", "decompress", "evaluate", "load", "save",
+    "FormatError", "MarkerMotion", "MocapzError", "Motion", "OptionError", "Skeleton", "StreamDecoder",
+    "StreamEncoder", "TargetError", "__version__", "compress", "decompress", "evaluate", "load", "save",
 ]

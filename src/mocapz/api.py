@@ -3,10 +3,14 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from dataclasses import replace
 from os import PathLike
 from pathlib import Path
 from typing import Any
+
+import numpy as np
 
 from mocapz import blocking
 from mocapz.codecs import CodecInfo, get_codec
@@ -14,6 +18,7 @@ from mocapz.errors import FormatError, OptionError
 from mocapz.format.container import Container
 from mocapz.format.extras import PREFIX, attach, decode_extras, sections_of, split_sections
 from mocapz.format.layout import decode_header, encode_layout
+from mocapz.format.stream import STREAM_VERSION, read_stream
 from mocapz.model.header import ClipHeader
 from mocapz.model.motion import AnyMotion, MarkerMotion, Motion
 
@@ -61,7 +66,17 @@ def compress_checked(motion: AnyMotion, info: CodecInfo, checked: dict[str, Any]
 
 
 def read_container(data: bytes, path: str | Path | None = None) -> tuple[Container, ClipHeader]:
-    """Parse container bytes and their layout header (errors name ``path``)."""
+    """Parse container bytes and their layout header (errors name ``path``). A stream (format version 3)
+    comes back as a container of its blocks' sections (``"{block}:{name}"``) and a header of all its frames."""
+    if len(data) > 4 and data[4] == STREAM_VERSION:
+        try:
+            stream = read_stream(data)
+            header = decode_header(stream.layout)
+        except FormatError as exc:
+            raise FormatError(path, exc.problem) from None
+        sections = {f"{i}:{k}": v for i, b in enumerate(stream.blocks) for k, v in b.items()}
+        box = Container(stream.codec, stream.codec_version, stream.layout, {**sections, **stream.sections})
+        return box, replace(header, frames=stream.frames)
     box = Container.from_bytes(data, path)
     try:
         header = decode_header(box.layout)
@@ -74,17 +89,13 @@ def decompress(data: bytes, path: str | Path | None = None, *,
                frames: slice | range | tuple[int, int] | None = None) -> AnyMotion:
     """Decode the bytes of a ``.mcz`` file back into a motion, or only ``frames`` of it (a slice: the values of
     those frames in a full decode; a file coded in blocks decodes only the blocks they lie in)."""
+    if len(data) > 4 and data[4] == STREAM_VERSION:
+        return decode_stream(data, path, frames)
     box, header = read_container(data, path)
     start, stop = blocking.frame_range(frames, header.frames)
-    try:
-        info = get_codec(box.codec)
-    except OptionError:
-        raise FormatError(path, f"written by unknown codec {box.codec!r}") from None
-    if box.codec_version != info.version:
-        raise FormatError(path, f"codec {box.codec!r} version {box.codec_version} is not supported "
-                                f"(this mocapz has version {info.version})")
+    info = codec_of(box.codec, box.codec_version, path)
     codec_sections, extra_sections = split_sections(box.sections)
-    try:
+    with decoder_errors(box.codec, path):
         if box.blocked:
             motion, shared = blocking.decode(info.decode, codec_sections, header, start, stop)
             if shared:
@@ -94,11 +105,34 @@ def decompress(data: bytes, path: str | Path | None = None, *,
         if (start, stop) == (0, header.frames):
             return attach(motion, extra_sections)
         return _with_extras(motion.slice(start, stop), extra_sections, header, start, stop)
+
+
+def codec_of(name: str, version: int, path: str | Path | None) -> CodecInfo:
+    """The registered codec a file names, at the version it was written with (FormatError otherwise)."""
+    try:
+        info = get_codec(name)
+    except OptionError:
+        raise FormatError(path, f"written by unknown codec {name!r}") from None
+    check_codec_version(info, version, path)
+    return info
+
+
+def check_codec_version(info: CodecInfo, version: int, path: str | Path | None) -> None:
+    if version != info.version:
+        raise FormatError(path, f"codec {info.name!r} version {version} is not supported "
+                                f"(this mocapz has version {info.version})")
+
+
+@contextmanager
+def decoder_errors(codec: str, path: str | Path | None) -> Iterator[None]:
+    """A decoder's errors as one FormatError naming the file."""
+    try:
+        yield
     except FormatError as exc:
         raise FormatError(path, exc.problem) from None
     except (ValueError, IndexError, KeyError, TypeError, OverflowError) as exc:
         # the checksum held, so this is damaged content written with a valid CRC, or a decoder bug
-        raise FormatError(path, f"the {box.codec} decoder failed ({type(exc).__name__}: {exc}): the file's "
+        raise FormatError(path, f"the {codec} decoder failed ({type(exc).__name__}: {exc}): the file's "
                                 f"content is damaged, or this is a mocapz bug (please report it)") from None
 
 
@@ -111,3 +145,23 @@ def _with_extras(motion: AnyMotion, sections: dict[str, bytes], header: ClipHead
         raise FormatError(None, "corrupted .mcz file (C3D sections in a skeletal clip)")
     motion.metadata["c3d"] = decode_extras(sections, header.frames, len(header.labels)).slice(start, stop)
     return motion
+
+
+def decode_stream(data: bytes, path: str | Path | None = None,
+                  frames: slice | range | tuple[int, int] | None = None) -> AnyMotion:
+    """A complete stream's motion (or ``frames`` of it, decoding only the blocks they lie in)."""
+    try:
+        stream = read_stream(data)
+        header = replace(decode_header(stream.layout), frames=stream.frames)
+    except FormatError as exc:
+        raise FormatError(path, exc.problem) from None
+    info = codec_of(stream.codec, stream.codec_version, path)
+    if stream.sections:
+        raise FormatError(path, f"corrupted streamed .mcz (unknown clip-wide sections {sorted(stream.sections)})")
+    if not stream.blocks:
+        return header.motion(np.zeros(header.value_shape))
+    start, stop = blocking.frame_range(frames, header.frames)
+    ends = np.cumsum(stream.block_frames).tolist()
+    spans = list(zip([0, *ends[:-1]], ends, strict=True))
+    with decoder_errors(stream.codec, path):
+        return blocking.decode_spans(info.decode, stream.blocks, spans, header, start, stop)

@@ -76,14 +76,23 @@ def decode(decode_one: Callable[[Sections, ClipHeader], AnyMotion], sections: Se
     """Frames ``[start, stop)`` of a blocked clip, decoding only the blocks they lie in; returns the motion and
     the clip-wide sections (the ones outside the blocks)."""
     index, parts, shared = blocks.unpack(sections, header.frames)
+    spans = [index.bounds(i) for i in range(index.count)]
+    return decode_spans(decode_one, parts, spans, header, start, stop), shared
+
+
+def decode_spans(decode_one: Callable[[Sections, ClipHeader], AnyMotion], parts: list[Sections],
+                 spans: list[tuple[int, int]], header: ClipHeader, start: int, stop: int) -> AnyMotion:
+    """Frames ``[start, stop)`` from blocks ``parts`` covering frames ``spans`` ``[(a, b), ...]`` (in order,
+    end to end), decoding only the blocks the range meets."""
     pieces = []
-    for i in index.covering(start, stop):
-        a, b = index.bounds(i)
+    for i, (a, b) in enumerate(spans):
+        if b <= start or a >= stop:
+            continue
         piece = decode_one(parts[i], replace(header, frames=b - a))
         if piece.n_frames != b - a:
             raise ValueError(f"block {i} decoded to {piece.n_frames} frames, not {b - a}")
         pieces.append(piece.slice(max(start - a, 0), min(stop, b) - a))
-    return joined(pieces), shared
+    return joined(pieces)
 
 
 def joined(pieces: list[AnyMotion]) -> AnyMotion:

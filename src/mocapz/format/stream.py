@@ -1,0 +1,171 @@
+"""The streamed ``.mcz`` (container format version 3): written block by block as frames arrive, readable as
+bytes arrive, and an ordinary ``.mcz`` once complete (``mocapz.decompress`` reads it).
+
+Byte layout::
+
+    header   magic b"MCZ\\x1a", byte 3, codec name length n, n bytes codec name, codec version,
+             uvarint L + L bytes layout header (its frame count 0: the stream's length is not known yet)
+    block    byte 1, uvarint frames (>= 1), the block's codec sections (``write_sections``),
+             CRC-32 (little endian) of the record from its first byte
+    ...
+    end      byte 0, uvarint total frames (the blocks' sum), clip-wide sections, CRC-32 of every byte of the
+             file before it
+
+A reader checks each block's CRC as it arrives (:class:`StreamReader`), and the end record's CRC covers the
+whole file as a version-1 file's does.
+"""
+
+from __future__ import annotations
+
+import struct
+import zlib
+from dataclasses import dataclass, field
+
+from mocapz.errors import FormatError
+from mocapz.format.container import MAGIC, read_sections, write_sections
+from mocapz.format.entropy import read_uvarint, write_uvarint
+
+STREAM_VERSION = 3
+BLOCK, END = 1, 0
+MAX_BLOCK_FRAMES = 1 << 24
+
+
+def header_bytes(codec: str, codec_version: int, layout: bytes) -> bytes:
+    """The stream's first bytes."""
+    name = codec.encode("ascii")
+    return MAGIC + bytes([STREAM_VERSION, len(name)]) + name + bytes([codec_version]) + write_uvarint(len(layout)) \
+        + layout
+
+
+def block_bytes(frames: int, sections: dict[str, bytes]) -> bytes:
+    """One block record."""
+    body = bytes([BLOCK]) + write_uvarint(frames) + write_sections(sections)
+    return body + struct.pack("<I", zlib.crc32(body) & 0xFFFFFFFF)
+
+
+def end_bytes(total: int, sections: dict[str, bytes], crc_before: int) -> bytes:
+    """The end record; ``crc_before`` is the running CRC-32 of every byte written before it."""
+    body = bytes([END]) + write_uvarint(total) + write_sections(sections)
+    return body + struct.pack("<I", zlib.crc32(body, crc_before) & 0xFFFFFFFF)
+
+
+@dataclass
+class Stream:
+    """A parsed stream: codec, layout bytes, the blocks' frame counts and sections, the clip-wide sections."""
+
+    codec: str
+    codec_version: int
+    layout: bytes
+    block_frames: list[int] = field(default_factory=list)
+    blocks: list[dict[str, bytes]] = field(default_factory=list)
+    sections: dict[str, bytes] = field(default_factory=dict)
+    complete: bool = False
+
+    @property
+    def frames(self) -> int:
+        return sum(self.block_frames)
+
+
+class StreamReader:
+    """Parse a stream as its bytes arrive: :meth:`feed` returns the blocks completed by the new bytes."""
+
+    def __init__(self) -> None:
+        self.buffer = bytearray()
+        self.pos = 0  # bytes of ``buffer`` already parsed
+        self.stream: Stream | None = None
+        self.crc = 0
+
+    @property
+    def pending(self) -> int:
+        """Bytes received and not yet part of a complete record."""
+        return len(self.buffer) - self.pos
+
+    def feed(self, data: bytes) -> list[tuple[int, dict[str, bytes]]]:
+        """Add bytes; return ``(frames, sections)`` of every block they complete (FormatError if damaged)."""
+        if self.stream is not None and self.stream.complete and data:
+            raise FormatError(None, "bytes after the end of the stream")
+        if self.pos:
+            del self.buffer[:self.pos]
+            self.pos = 0
+        self.buffer += data
+        out = []
+        while True:
+            view = memoryview(self.buffer)[self.pos:]
+            try:
+                got = self._next(view)
+            finally:
+                view.release()
+            if got is None:
+                return out
+            used, block = got
+            self.pos += used
+            if block is not None:
+                out.append(block)
+
+    def _next(self, buf: memoryview) -> tuple[int, tuple[int, dict[str, bytes]] | None] | None:
+        """``(bytes used, the block or None)`` of the next complete record, None if it is not all here."""
+        try:
+            if self.stream is None:
+                return self._header(buf)
+            if self.stream.complete or not len(buf):
+                return None
+            kind = buf[0]
+            frames, pos = read_uvarint(buf, 1)
+            sections, pos = read_sections(buf, pos, "stream block")
+        except FormatError as exc:
+            if "truncated" in exc.problem:
+                return None  # wait for more bytes
+            raise
+        if pos + 4 > len(buf):
+            return None
+        (crc,) = struct.unpack("<I", buf[pos:pos + 4])
+        if kind == BLOCK:
+            if zlib.crc32(buf[:pos]) & 0xFFFFFFFF != crc:
+                raise FormatError(None, "corrupted stream block (checksum mismatch)")
+            if not 1 <= frames <= MAX_BLOCK_FRAMES:
+                raise FormatError(None, f"corrupted stream block ({frames} frames)")
+        elif kind == END:
+            if zlib.crc32(buf[:pos], self.crc) & 0xFFFFFFFF != crc:
+                raise FormatError(None, "corrupted or truncated stream (checksum mismatch)")
+            if frames != self.stream.frames:
+                raise FormatError(None, f"corrupted stream (end says {frames} frames, its blocks hold "
+                                        f"{self.stream.frames})")
+        else:
+            raise FormatError(None, f"corrupted stream (record kind {kind})")
+        self.crc = zlib.crc32(buf[:pos + 4], self.crc)
+        if kind == END:
+            self.stream.sections = sections
+            self.stream.complete = True
+            return pos + 4, None
+        self.stream.block_frames.append(frames)
+        self.stream.blocks.append(sections)
+        return pos + 4, (frames, sections)
+
+    def _header(self, buf: memoryview) -> tuple[int, None] | None:
+        if len(buf) < 7:
+            return None
+        if bytes(buf[:4]) != MAGIC or buf[4] != STREAM_VERSION:
+            raise FormatError(None, "not a streamed mocapz .mcz (bad magic bytes or version)")
+        n = buf[5]
+        pos = 6 + n
+        if pos + 1 > len(buf):
+            return None
+        codec = bytes(buf[6:pos]).decode("ascii", errors="replace")
+        version = buf[pos]
+        ln, pos = read_uvarint(buf, pos + 1)
+        if pos + ln > len(buf):
+            return None
+        self.stream = Stream(codec, version, bytes(buf[pos:pos + ln]))
+        self.crc = zlib.crc32(buf[:pos + ln])
+        return pos + ln, None
+
+
+def read_stream(data: bytes) -> Stream:
+    """A complete stream (FormatError if truncated, damaged or followed by other bytes)."""
+    reader = StreamReader()
+    reader.feed(data)
+    if reader.stream is None or not reader.stream.complete:
+        raise FormatError(None, "truncated streamed .mcz file (no end record)")
+    if reader.pending:
+        raise FormatError(None, "corrupted streamed .mcz file (bytes after the end record)")
+    return reader.stream

@@ -1,0 +1,172 @@
+"""Compression of a live stream: frames in as they come, bytes out block by block, and back.
+
+>>> enc = mocapz.StreamEncoder(template, codec="quant", max_error="1cm")   # template: the stream's layout
+>>> out = enc.write(frames)          # (n, channels) or (n, markers, 3): bytes of the blocks now complete
+>>> out += enc.close()               # the last block and the end record: a complete .mcz
+>>> dec = mocapz.StreamDecoder()
+>>> for motion in dec.feed(chunk): ...   # one motion per block, as soon as its bytes are in
+
+A block is coded as soon as it is full (default 1 s of motion: the latency), as a clip of its own, as in a
+file coded in blocks (:mod:`mocapz.blocking`). What a block's correction decides on the whole clip in a file
+(foot contacts, body height) it decides on the last :data:`HISTORY_S` seconds, and the jitter allowance is
+spent block after block against the energy seen so far; so memory stays bounded whatever the stream's
+length. The bytes (:mod:`mocapz.format.stream`) are a ``.mcz`` that :func:`mocapz.decompress` reads.
+"""
+
+from __future__ import annotations
+
+import zlib
+from dataclasses import replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from mocapz import blocking
+from mocapz.api import codec_of, decoder_errors
+from mocapz.codecs import get_codec
+from mocapz.codecs.correction.context import acceleration_energy
+from mocapz.codecs.target import ErrorMetric
+from mocapz.errors import FormatError, OptionError
+from mocapz.format import stream as framing
+from mocapz.format.layout import decode_header, encode_layout
+from mocapz.model.header import ClipHeader
+from mocapz.model.motion import AnyMotion, BlockOf, MarkerMotion, Motion
+
+HISTORY_S = 10.0  # seconds of past frames a block's decisions look at
+
+
+class StreamEncoder:
+    """Encode frames as they arrive.
+
+    Args:
+        template: a motion with the stream's layout (skeleton or marker labels, frame rate, units, decimals);
+            its frames are not coded.
+        codec: a registered codec name.
+        block: block length (frames, ``"1s"``; default 1 s): the latency, and the unit of random access.
+        **options: the codec's options (targets hold on every block, hence on the stream).
+    """
+
+    def __init__(self, template: AnyMotion, codec: str = "lossless", block: int | float | str | None = "1s",
+                 **options: Any) -> None:
+        self.info = get_codec(codec)
+        self.options = self.info.validate(options)
+        if template.kind not in self.info.kinds:
+            raise OptionError(f"the {self.info.name} codec does not take {template.kind} data")
+        if "c3d" in template.metadata:
+            raise OptionError("a stream carries marker positions only: compress a C3D file with its analogs and "
+                              "parameters as a file (mocapz.compress)")
+        self.template = template.slice(0, 0)
+        self.block = blocking.block_frames(block, template.frame_rate, 1.0) or 1
+        self.history = max(int(round(HISTORY_S * template.frame_rate)), 2)
+        self.pending: list[np.ndarray] = []
+        self.past = template.values[:0]  # the last frames before the pending ones (context)
+        self.frames = 0
+        self.energy = 0.0  # the original's acceleration energy so far
+        self.spent = 0.0  # acceleration energy the corrections added so far
+        self.crc = 0
+        self.started = False
+        self.closed = False
+
+    def write(self, frames: np.ndarray | AnyMotion) -> bytes:
+        """Add frames ``(n, channels)`` (skeleton) or ``(n, markers, 3)`` (markers; NaN gaps) in file units;
+        returns the bytes ready: the header on the first call, then every block completed."""
+        if self.closed:
+            raise OptionError("the stream is closed")
+        values = frames.values if isinstance(frames, Motion | MarkerMotion) else np.asarray(frames, np.float64)
+        if values.shape[1:] != self.template.values.shape[1:]:
+            raise OptionError(f"frames of shape {values.shape[1:]} for a stream of {self.template.values.shape[1:]}")
+        self.pending.append(np.array(values, dtype=np.float64))
+        out = bytearray(self._start())
+        have = sum(len(p) for p in self.pending)
+        while have >= self.block:
+            rows = np.concatenate(self.pending)
+            out += self._encode(rows[:self.block])
+            self.pending = [rows[self.block:]]
+            have -= self.block
+        return bytes(out)
+
+    def close(self) -> bytes:
+        """The last (shorter) block and the end record; the stream's bytes are then a complete ``.mcz``."""
+        if self.closed:
+            return b""
+        out = bytearray(self._start())
+        rows = np.concatenate(self.pending) if self.pending else self.template.values[:0]
+        if len(rows):
+            out += self._encode(rows)
+        self.pending, self.closed = [], True
+        end = framing.end_bytes(self.frames, {}, self.crc)
+        return bytes(out + end)
+
+    def _start(self) -> bytes:
+        if self.started:
+            return b""
+        self.started = True
+        head = framing.header_bytes(self.info.name, self.info.version, encode_layout(self.template))
+        self.crc = zlib.crc32(head)
+        return head
+
+    def _encode(self, rows: np.ndarray) -> bytes:
+        past = self.past[-self.history:]
+        field = "channels" if isinstance(self.template, Motion) else "positions"
+        window = replace(self.template, **{field: np.concatenate([past, rows])})
+        a, b = len(past), len(past) + len(rows)
+        metric = ErrorMetric(window)
+        valid = np.ones(metric.positions.shape[:2], bool) if metric.valid is None else metric.valid
+        lo = max(a - 2, 0)
+        self.energy += float(acceleration_energy(metric.positions[lo:b], valid[lo:b])[0].sum())
+        # the clip so far, as the block's correction sees it: energy up to the block's end, the allowance spent
+        cache = {"positions": (metric.positions, valid), "energy": (self.energy, b), "jitter_spent": self.spent}
+        piece = window.slice(a, b)
+        piece = replace(piece, metadata={**piece.metadata, "block_of": BlockOf(window, a, b, cache)})
+        sections = self.info.encode(piece, **self.options)
+        self.spent = float(cache.get("jitter_spent", self.spent))
+        self.past = np.concatenate([past, rows])[-self.history:]
+        self.frames += len(rows)
+        record = framing.block_bytes(len(rows), sections)
+        self.crc = zlib.crc32(record, self.crc)
+        return record
+
+
+class StreamDecoder:
+    """Decode a stream as its bytes arrive: :meth:`feed` yields one motion per block completed."""
+
+    def __init__(self, path: str | Path | None = None) -> None:
+        self.reader = framing.StreamReader()
+        self.path = path
+        self.header: ClipHeader | None = None
+        self.info = None
+        self.frames = 0
+
+    def feed(self, data: bytes) -> list[AnyMotion]:
+        """The motions of the blocks ``data`` completes (FormatError naming the stream if damaged)."""
+        try:
+            blocks = self.reader.feed(data)
+        except FormatError as exc:
+            raise FormatError(self.path, exc.problem) from None
+        out = []
+        for frames, sections in blocks:
+            header = self._header()
+            with decoder_errors(self.reader.stream.codec, self.path):  # type: ignore[union-attr]
+                motion = self.info.decode(sections, replace(header, frames=frames))  # type: ignore[union-attr]
+                if motion.n_frames != frames:
+                    raise ValueError(f"a block decoded to {motion.n_frames} frames, not {frames}")
+            self.frames += frames
+            out.append(motion)
+        return out
+
+    @property
+    def complete(self) -> bool:
+        """True once the end record is in (the stream checked whole)."""
+        return self.reader.stream is not None and self.reader.stream.complete
+
+    def _header(self) -> ClipHeader:
+        if self.header is None:
+            stream = self.reader.stream
+            assert stream is not None
+            self.info = codec_of(stream.codec, stream.codec_version, self.path)
+            try:
+                self.header = decode_header(stream.layout)
+            except FormatError as exc:
+                raise FormatError(self.path, exc.problem) from None
+        return self.header

@@ -1,0 +1,103 @@
+"""Streams: frames fed one by one or in chunks of random sizes give a .mcz the ordinary decoder reads, the same
+whatever the chunking, with the target met on every frame and a size near the offline file's; the decoder
+gives each block as its bytes arrive; damaged or truncated streams are FormatErrors."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from conftest import data_path
+
+import mocapz
+from mocapz.errors import FormatError, OptionError
+from mocapz.format.stream import StreamReader
+
+
+def _stream(m, codec: str, sizes, **options) -> bytes:
+    enc = mocapz.StreamEncoder(m, codec, **options)
+    out, i = bytearray(), 0
+    for k in sizes:
+        out += enc.write(m.values[i:i + k])
+        i += k
+        if i >= m.n_frames:
+            break
+    out += enc.write(m.values[i:])
+    return bytes(out + enc.close())
+
+
+def _random_sizes(seed: int):
+    rng = np.random.default_rng(seed)
+    while True:
+        yield int(rng.integers(1, 90))
+
+
+@pytest.mark.parametrize("rel", ["cmu/bvh/05_02.bvh", "cmu/c3d/01_01.c3d", "other/markers/btkdata/Gait.trc"])
+def test_lossless_stream_is_exact_and_independent_of_chunking(rel: str) -> None:
+    m = mocapz.load(data_path(rel))
+    if m.kind == "markers":
+        m = m.slice(0, min(m.n_frames, 700))
+        m.metadata.pop("c3d", None)  # a stream carries positions only
+    one_by_one = _stream(m, "lossless", [1] * m.n_frames)
+    chunked = _stream(m, "lossless", _random_sizes(1))
+    assert one_by_one == chunked
+    back = mocapz.decompress(chunked)
+    assert np.array_equal(back.values, m.values, equal_nan=True)
+    assert len(chunked) <= 1.03 * len(mocapz.compress(m, "lossless"))
+    a = m.n_frames // 2
+    assert np.array_equal(mocapz.decompress(chunked, frames=slice(a, a + 20)).values, m.values[a:a + 20],
+                          equal_nan=True)
+
+
+def test_lossy_stream_meets_its_target_near_the_offline_size() -> None:
+    m = mocapz.load(data_path("cmu/bvh/05_02.bvh"))
+    data = _stream(m, "quant", _random_sizes(2), max_error="1cm")
+    rep = mocapz.evaluate(m, mocapz.decompress(data))
+    assert rep.max_err_cm <= 1.0 + 1e-9
+    assert rep.jitter_pct <= 5.0
+    assert len(data) <= 1.2 * len(mocapz.compress(m, "quant", max_error="1cm"))
+
+
+def test_decoder_yields_blocks_as_bytes_arrive() -> None:
+    m = mocapz.load(data_path("cmu/bvh/05_02.bvh"))
+    data = _stream(m, "lossless", _random_sizes(3), block=120)
+    dec = mocapz.StreamDecoder()
+    got, first_at = [], None
+    for i in range(0, len(data), 500):
+        new = dec.feed(data[i:i + 500])
+        if new and first_at is None:
+            first_at = i + 500
+        got += new
+    assert dec.complete
+    assert first_at is not None and first_at < len(data) / 4  # the first block comes out long before the end
+    assert [g.n_frames for g in got[:-1]] == [120] * (len(got) - 1)
+    assert np.array_equal(np.concatenate([g.values for g in got]), m.values)
+    assert dec.reader.pending == 0
+
+
+def test_damaged_and_truncated_streams_are_format_errors() -> None:
+    m = mocapz.load(data_path("cmu/bvh/09_06.bvh"))
+    data = _stream(m, "lossless", [50, 50, 50], block=40)
+    with pytest.raises(FormatError, match="no end record"):
+        mocapz.decompress(data[:-9])
+    bad = bytearray(data)
+    bad[len(bad) // 2] ^= 0x10
+    with pytest.raises(FormatError):
+        mocapz.decompress(bytes(bad))
+    with pytest.raises(FormatError):
+        StreamReader().feed(bytes(bad))
+    with pytest.raises(FormatError, match="after the end"):
+        mocapz.decompress(data + b"\x00")
+
+
+def test_stream_refusals() -> None:
+    m = mocapz.load(data_path("cmu/bvh/09_06.bvh"))
+    enc = mocapz.StreamEncoder(m, "lossless")
+    with pytest.raises(OptionError, match="shape"):
+        enc.write(np.zeros((3, 5)))
+    enc.close()
+    with pytest.raises(OptionError, match="closed"):
+        enc.write(m.values[:1])
+    with pytest.raises(OptionError):
+        mocapz.StreamEncoder(m, "pga", max_error="2x")
+    empty = mocapz.StreamEncoder(m, "lossless")
+    assert mocapz.decompress(empty.close()).n_frames == 0
