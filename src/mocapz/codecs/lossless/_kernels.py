@@ -173,3 +173,21 @@ def undo_prediction(residual: np.ndarray, order: np.ndarray, npred: np.ndarray, 
             c = active[a]
             slope[a] += d2[c]
             x[t + 2, c] = x[t + 1, c] + slope[a]
+
+
+@njit(cache=True, nogil=True)
+def pack_low(low: np.ndarray, k: np.ndarray) -> np.ndarray:
+    """``k[i]`` low bits of each ``low[i]``, least significant first, packed most significant bit first
+    (``np.packbits`` order), as :func:`~.coding._pack_low`."""
+    total = 0
+    for i in range(k.size):
+        total += k[i]
+    out = np.zeros((total + 7) // 8, dtype=np.uint8)
+    pos = 0
+    for i in range(k.size):
+        v = low[i]
+        for j in range(k[i]):
+            if (v >> np.uint64(j)) & np.uint64(1):
+                out[pos >> 3] |= np.uint8(0x80 >> (pos & 7))
+            pos += 1
+    return out

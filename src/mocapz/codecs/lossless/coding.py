@@ -68,6 +68,10 @@ def _split_low(values: np.ndarray, k: np.ndarray) -> tuple[np.ndarray, np.ndarra
 
 def _pack_low(low: np.ndarray, k: np.ndarray) -> bytes:
     """``k[i]`` low bits of each ``low[i]`` (uint64), least significant first, packed."""
+    kern = fast.kernels()
+    if kern is not None:
+        packed = kern.pack_low(np.ascontiguousarray(low, dtype=np.uint64), np.ascontiguousarray(k, dtype=np.int64))
+        return packed.tobytes()
     some = k > 0
     low, k = low[some], k[some]
     kmax = int(k.max(initial=0))
