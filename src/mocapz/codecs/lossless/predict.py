@@ -170,7 +170,9 @@ def unpack_predictors(order: list[int], data: bytes) -> list[tuple[list[int], np
     if pos + size > len(data):
         raise FormatError(None, "corrupted lossless stream (predictor table)")
     meta = unpack_small(data[pos : pos + size], at_most=(1 + MAX_PREDICTORS) * len(order)).tolist()
-    coefs = unzigzag(unpack_small(data[pos + size :], at_most=MAX_PREDICTORS * len(order))).tolist()
+    values = unzigzag(unpack_small(data[pos + size :], at_most=MAX_PREDICTORS * len(order)))
+    if values.size and int(np.abs(values).max()) > COEF_LIMIT:
+        raise FormatError(None, "corrupted lossless stream (predictor coefficient)")
     table: list[tuple[list[int], np.ndarray]] = []
     at = used = 0
     for i in range(len(order)):
@@ -178,13 +180,10 @@ def unpack_predictors(order: list[int], data: bytes) -> list[tuple[list[int], np
             raise FormatError(None, "corrupted lossless stream (predictor table)")
         n = meta[at]
         back = meta[at + 1 : at + 1 + n]
-        coef = coefs[used : used + n]
         at, used = at + 1 + n, used + n
-        if len(back) != n or len(coef) != n or any(not 1 <= b <= min(i, WINDOW) for b in back):
+        if len(back) != n or used > values.size or (n and not 1 <= min(back) <= max(back) <= min(i, WINDOW)):
             raise FormatError(None, "corrupted lossless stream (predictor table)")
-        if any(abs(v) > COEF_LIMIT for v in coef):
-            raise FormatError(None, "corrupted lossless stream (predictor coefficient)")
-        table.append(([order[i - b] for b in back], np.asarray(coef, dtype=np.int64)))
-    if at != len(meta) or used != len(coefs):
+        table.append(([order[i - b] for b in back], values[used - n : used]))
+    if at != len(meta) or used != values.size:
         raise FormatError(None, "corrupted lossless stream (predictor table length)")
     return table
