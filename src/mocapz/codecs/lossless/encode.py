@@ -34,6 +34,7 @@ from mocapz.codecs.lossless.predict import (
     pack_predictors,
     shared_fit,
 )
+from mocapz.codecs.lossless.pursuit import choose_shared
 from mocapz.format.entropy import pack_uint64, write_uvarint, zigzag
 from mocapz.model.motion import AnyMotion, MarkerMotion, Motion
 
@@ -146,10 +147,12 @@ def _integer_sections(x: np.ndarray, gaps: np.ndarray | None, groups: list[list[
         shared = shared_fit(d2, order)
         every = np.arange(frames - 2)
         d2t = np.ascontiguousarray(d2.T)  # a column's predictors are rows here (contiguous gathers)
+        if shared is not None:
+            table = choose_shared(shared, order, frames - 2)
+        else:
+            table = [choose_predictors(d2, c, order[:k], every) for k, c in enumerate(order)]
         for k, c in enumerate(order):
-            preds, coef = choose_predictors(d2, c, order[:k], every, shared)
-            table.append((preds, coef))
-            residual[:, k] = d2t[c] - _cross_rows(d2t, preds, coef)
+            residual[:, k] = d2t[c] - _cross_rows(d2t, *table[k])
         out["coef"] = pack_predictors(order, table)
         out["res"] = encode_residuals(residual, coded)
         return out
