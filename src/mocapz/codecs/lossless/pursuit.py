@@ -44,6 +44,7 @@ def choose_shared(shared: tuple[np.ndarray, np.ndarray, np.ndarray], order: list
     valid = np.arange(WINDOW)[None, :] < size[:, None]
     for i, cand in enumerate(cands):
         pad[i, : len(cand)] = cand
+    cand_rows = [np.asarray(cand, dtype=np.int64)[:, None] for cand in cands]
     rhs = big[pad, cols[:, None]]  # (columns, WINDOW)
     norms = np.sqrt(big[pad, pad]) + 1e-9
     corr = rhs.copy()
@@ -78,8 +79,9 @@ def choose_shared(shared: tuple[np.ndarray, np.ndarray, np.ndarray], order: list
         for m in range(1, n):
             acc += full[members[:, m]] * weights[:, m : m + 1]
         resid = full[cols[idx]] - acc
+        finite = np.isfinite(sol).all(axis=1).tolist()
         for a, i in enumerate(idx.tolist()):
-            if not np.isfinite(sol[a]).all():  # the wrapper's own error or numbers
+            if not finite[a]:  # the wrapper's own error or numbers
                 sol_i = _lstsq(np.ascontiguousarray(sub[a]), np.ascontiguousarray(b[a]))
                 coef_i = np.minimum(np.maximum(np.round(sol_i * (1 << COEF_SHIFT)), -COEF_LIMIT), COEF_LIMIT)
                 coef[a] = coef_i.astype(np.int64)
@@ -89,7 +91,7 @@ def choose_shared(shared: tuple[np.ndarray, np.ndarray, np.ndarray], order: list
                 sol_i = sol[a].copy()
             cand = cands[i]
             if step + 1 < steps[i]:
-                gram_cols = big[np.ix_(cand, members[a].tolist())]
+                gram_cols = big[cand_rows[i], members[a]]  # as big[np.ix_(cand, members)]
                 corr[i, : len(cand)] = rhs[i, : len(cand)] - np.einsum("jk,k->j", gram_cols, sol_i, optimize=False)
             cost = _cost(resid[a]) + PREDICTOR_BITS * n
             if cost < best_cost[i]:
