@@ -89,3 +89,28 @@ def test_damaged_residuals_decode_alike() -> None:
         assert type(slow) is type(quick)
         if isinstance(slow, np.ndarray):
             assert np.array_equal(slow, quick)
+
+
+@pytest.mark.parametrize("rel", ["cmu/bvh/09_06.bvh", "other/bvh/games105/walk_and_turn_left.bvh"])
+def test_batched_pursuit_matches_column_by_column(rel: str) -> None:
+    """The encoder's batched predictor choice (gap-free clips) gives each column's own choice exactly."""
+    from mocapz.codecs.lossless.encode import column_groups, value_matrix
+    from mocapz.codecs.lossless.integers import choose_form
+    from mocapz.codecs.lossless.predict import choose_predictors, coding_order, shared_fit
+    from mocapz.codecs.lossless.pursuit import choose_shared
+
+    motion = mocapz.load(data_path(rel))
+    values, gaps = value_matrix(motion)
+    assert gaps is None
+    x = choose_form(values, None if motion.decimals is None else np.broadcast_to(
+        np.asarray(motion.decimals, dtype=np.int64), (values.shape[1],)), None).ints
+    d2 = x[2:] - 2 * x[1:-1] + x[:-2]
+    order = coding_order([[c for c in g if np.any(d2[:, c])] for g in column_groups(motion)])
+    shared = shared_fit(d2, order)
+    assert shared is not None
+    every = np.arange(d2.shape[0])
+    one_by_one = [choose_predictors(d2, c, order[:k], every, shared) for k, c in enumerate(order)]
+    unshared = [choose_predictors(d2, c, order[:k], every) for k, c in enumerate(order)]
+    batched = choose_shared(shared, order, d2.shape[0])
+    for (p1, c1), (p2, c2), (p3, c3) in zip(one_by_one, batched, unshared, strict=True):
+        assert p1 == p2 == p3 and np.array_equal(c1, c2) and np.array_equal(c1, c3)
