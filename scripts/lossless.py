@@ -107,6 +107,12 @@ def measure(name: str, motion: AnyMotion, source: bytes, repeat: int = 1) -> dic
 
 def warm_up(data: Path) -> None:
     """One untimed round trip, so that no file's time includes loading (or compiling) the numba kernels."""
+    try:
+        from mocapz.codecs.lossless import fast
+    except ImportError:  # a mocapz before the numba kernels
+        pass
+    else:
+        fast.kernels(force=True)  # loaded now, not after a million values
     path = data / "cmu" / "bvh" / "09_06.bvh"
     if path.exists():
         mocapz.decompress(mocapz.compress(mocapz.load(path), codec="lossless"))
@@ -145,7 +151,7 @@ def _kernels_on() -> bool:
         from mocapz.codecs.lossless import fast
     except ImportError:  # a mocapz before the numba kernels (timing an older checkout with --only)
         return False
-    return fast.kernels() is not None
+    return fast.kernels(force=True) is not None
 
 
 def report(rows: list[dict[str, object]], repeat: int = 1) -> str:

@@ -105,7 +105,7 @@ def encode_residuals(r: np.ndarray, mask: np.ndarray) -> bytes:
     code = _initial_state(r, mask)
     state = _state_of(code)
     ks, scales = np.zeros(r.shape, dtype=np.int64), np.zeros(r.shape)
-    kern = fast.kernels()
+    kern = fast.kernels(r.size)
     if kern is not None:
         kern.row_models(np.ascontiguousarray(r), np.ascontiguousarray(mask), state, ks, scales)
     else:
@@ -167,7 +167,7 @@ def decode_residuals(data: bytes, mask: np.ndarray) -> np.ndarray:
     if pos != len(data) or len(body) % 4:
         raise FormatError(None, "corrupted residual stream (length)")
     escapes = unzigzag(unpack_uint64(esc_bytes, at_most=int(mask.sum()))) if esc_bytes else np.zeros(0, np.int64)
-    kern = fast.kernels()
+    kern = fast.kernels(mask.size)
     if kern is not None:
         words = np.frombuffer(body, dtype="<u4").astype(np.uint32)
         bits8 = np.unpackbits(np.frombuffer(lows, dtype=np.uint8))
