@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from mocapz.codecs.lossless import fast
 from mocapz.errors import FormatError
 from mocapz.format.entropy import (
     HAVE_CONSTRICTION,
@@ -67,6 +68,10 @@ def _split_low(values: np.ndarray, k: np.ndarray) -> tuple[np.ndarray, np.ndarra
 
 def _pack_low(low: np.ndarray, k: np.ndarray) -> bytes:
     """``k[i]`` low bits of each ``low[i]`` (uint64), least significant first, packed."""
+    kern = fast.kernels()
+    if kern is not None:
+        packed = kern.pack_low(np.ascontiguousarray(low, dtype=np.uint64), np.ascontiguousarray(k, dtype=np.int64))
+        return packed.tobytes()
     some = k > 0
     low, k = low[some], k[some]
     kmax = int(k.max(initial=0))
@@ -100,9 +105,13 @@ def encode_residuals(r: np.ndarray, mask: np.ndarray) -> bytes:
     code = _initial_state(r, mask)
     state = _state_of(code)
     ks, scales = np.zeros(r.shape, dtype=np.int64), np.zeros(r.shape)
-    for t in range(rows):
-        ks[t], scales[t] = _row_model(state)
-        state = np.where(mask[t], _update(state, r[t]), state)
+    kern = fast.kernels(r.size)
+    if kern is not None:
+        kern.row_models(np.ascontiguousarray(r), np.ascontiguousarray(mask), state, ks, scales)
+    else:
+        for t in range(rows):
+            ks[t], scales[t] = _row_model(state)
+            state = np.where(mask[t], _update(state, r[t]), state)
     values, k = r[mask], ks[mask]
     high, low = _split_low(values, k)
     sym = np.clip(high, -LIMIT, LIMIT)
@@ -158,6 +167,17 @@ def decode_residuals(data: bytes, mask: np.ndarray) -> np.ndarray:
     if pos != len(data) or len(body) % 4:
         raise FormatError(None, "corrupted residual stream (length)")
     escapes = unzigzag(unpack_uint64(esc_bytes, at_most=int(mask.sum()))) if esc_bytes else np.zeros(0, np.int64)
+    kern = fast.kernels(mask.size)
+    if kern is not None:
+        words = np.frombuffer(body, dtype="<u4").astype(np.uint32)
+        bits8 = np.unpackbits(np.frombuffer(lows, dtype=np.uint8))
+        status = kern.decode_residual_rows(words, np.ascontiguousarray(mask, dtype=bool), _state_of(code),
+                                           np.ascontiguousarray(escapes, dtype=np.int64), bits8, out)
+        if status:
+            what = {kern.BAD_ESCAPES: "escapes", kern.BAD_LOW_BITS: "low bits"}.get(status)
+            raise FormatError(None, f"corrupted residual stream ({what})" if what
+                              else "corrupted entropy-coded data (invalid range-coded data)")
+        return out
     bits = np.unpackbits(np.frombuffer(lows, dtype=np.uint8)).astype(np.int64)
     model = constriction.stream.model.QuantizedLaplace(-LIMIT, LIMIT)
     state = _state_of(code)

@@ -26,7 +26,15 @@ from mocapz.codecs.lossless.integers import (
     estimated_bits,
     form_values,
 )
-from mocapz.codecs.lossless.predict import choose_predictors, coding_order, cross_term, pack_predictors
+from mocapz.codecs.lossless.predict import (
+    COEF_SHIFT,
+    choose_predictors,
+    coding_order,
+    cross_term,
+    pack_predictors,
+    shared_fit,
+)
+from mocapz.codecs.lossless.pursuit import choose_shared
 from mocapz.format.entropy import pack_uint64, write_uvarint, zigzag
 from mocapz.model.motion import AnyMotion, MarkerMotion, Motion
 
@@ -131,10 +139,24 @@ def _integer_sections(x: np.ndarray, gaps: np.ndarray | None, groups: list[list[
     if frames <= 2 or not active.size:
         return out
     order = coding_order([[c for c in g if not const[c]] for g in groups])
-    d2 = np.zeros((frames - 2, cols), dtype=np.int64)
     residual = np.empty((frames - 2, len(order)), dtype=np.int64)
     coded = observed[2:, order]
     table: list[tuple[list[int], np.ndarray]] = []
+    if gaps is None:  # every second difference is final from the start: one pass, one shared Gram matrix
+        d2 = x[2:] - 2 * x[1:-1] + x[:-2]
+        shared = shared_fit(d2, order)
+        every = np.arange(frames - 2)
+        d2t = np.ascontiguousarray(d2.T)  # a column's predictors are rows here (contiguous gathers)
+        if shared is not None:
+            table = choose_shared(shared, order, frames - 2)
+        else:
+            table = [choose_predictors(d2, c, order[:k], every) for k, c in enumerate(order)]
+        for k, c in enumerate(order):
+            residual[:, k] = d2t[c] - _cross_rows(d2t, *table[k])
+        out["coef"] = pack_predictors(order, table)
+        out["res"] = encode_residuals(residual, coded)
+        return out
+    d2 = np.zeros((frames - 2, cols), dtype=np.int64)
     for k, c in enumerate(order):
         rows = np.flatnonzero(observed[2:, c] & observed[1:-1, c] & observed[:-2, c])
         d2[:, c] = x[2:, c] - 2 * x[1:-1, c] + x[:-2, c]
@@ -148,6 +170,14 @@ def _integer_sections(x: np.ndarray, gaps: np.ndarray | None, groups: list[list[
     out["coef"] = pack_predictors(order, table)
     out["res"] = encode_residuals(residual, coded)
     return out
+
+
+def _cross_rows(d2t: np.ndarray, preds: list[int], coef: np.ndarray) -> np.ndarray:
+    """:func:`~.predict.cross_term` on transposed second differences ``(columns, frames)`` (same integers)."""
+    if not preds:
+        return np.zeros(d2t.shape[1], dtype=np.int64)
+    acc = np.asarray(coef, dtype=np.int64) @ d2t[preds]
+    return (acc + (1 << (COEF_SHIFT - 1))) >> COEF_SHIFT
 
 
 def _fill_gaps(col: np.ndarray, missing: np.ndarray, cross: np.ndarray) -> None:

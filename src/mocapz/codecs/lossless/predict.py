@@ -42,11 +42,54 @@ def cross_term(d2: np.ndarray, preds: list[int], coef: np.ndarray) -> np.ndarray
 
 
 def _cost(r: np.ndarray) -> float:
-    """Estimated bits of residuals ``r`` (Laplace: ``n * log2(mean |r| + 1)``)."""
-    return float(r.size * np.log2(np.abs(r).mean() + 1.0)) if r.size else 0.0
+    """Estimated bits of residuals ``r`` (Laplace: ``n * log2(mean |r| + 1)``; the mean as ``ndarray.mean``
+    computes it, without its overhead)."""
+    if not r.size:
+        return 0.0
+    mean = np.float64(np.add.reduce(np.abs(r))) / np.float64(r.size)
+    return float(r.size * np.log2(mean + 1.0))
 
 
-def choose_predictors(d2: np.ndarray, col: int, before: list[int], rows: np.ndarray) -> tuple[list[int], np.ndarray]:
+def _lstsq(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``np.linalg.lstsq(a, b, rcond=None)[0]`` for a small square ``a``: the same LAPACK call (gelsd) through
+    numpy's gufunc, without the wrapper's overhead; the wrapper itself wherever that call is missing or fails."""
+    if _LSTSQ is not None:
+        with np.errstate(all="ignore"):
+            x = _LSTSQ(a, b[:, None], np.finfo(np.float64).eps * a.shape[0], signature="ddd->ddid")[0][:, 0]
+        if np.isfinite(x).all():
+            return x
+    return np.linalg.lstsq(a, b, rcond=None)[0]
+
+
+try:
+    from numpy.linalg import _umath_linalg
+
+    _LSTSQ = _umath_linalg.lstsq
+except (ImportError, AttributeError):  # pragma: no cover - another numpy layout
+    _LSTSQ = None
+
+
+def shared_fit(d2: np.ndarray, columns: list[int]) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    """For clips without gaps (every column fitted on the same rows): the fit rows, their float second
+    differences (transposed: ``(columns, rows)``) and the Gram matrix of all ``columns`` at once, which gives every
+    column's Gram block and right-hand side bit for bit as :func:`choose_predictors` would compute them, since
+    every product and partial sum is then an integer below ``2**53`` (exact in any order); None where that
+    does not hold."""
+    frames = d2.shape[0]
+    rows = np.arange(frames)
+    if frames > FIT_ROWS:
+        rows = rows[np.linspace(0, frames - 1, FIT_ROWS).astype(np.int64)]
+    a = d2[rows].astype(np.float64)
+    cols = np.asarray(columns, dtype=np.int64)
+    if not cols.size or float(np.max(np.einsum("ij,ij->j", a[:, cols], a[:, cols], optimize=False))) >= 2.0**52:
+        return None
+    gram = np.zeros((d2.shape[1], d2.shape[1]))
+    gram[np.ix_(cols, cols)] = np.einsum("ij,ik->jk", a[:, cols], a[:, cols], optimize=False)
+    return rows, np.ascontiguousarray(a.T), gram
+
+
+def choose_predictors(d2: np.ndarray, col: int, before: list[int], rows: np.ndarray,
+                      shared: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None) -> tuple[list[int], np.ndarray]:
     """Predictor columns and fixed-point coefficients for ``col``.
 
     Greedy matching pursuit on the normal equations: each step adds the candidate most correlated with the
@@ -58,10 +101,13 @@ def choose_predictors(d2: np.ndarray, col: int, before: list[int], rows: np.ndar
         col: the column to predict.
         before: the columns coded before it (candidates: the last :data:`WINDOW`).
         rows: indices of the rows where ``col`` is observed (the fit uses at most :data:`FIT_ROWS` of them).
+        shared: :func:`shared_fit` of ``d2`` when every row is observed (the same numbers, computed once).
     """
     cand = before[-WINDOW:]
     if not cand or rows.size < 8:
         return [], np.zeros(0, dtype=np.int64)
+    if shared is not None:  # exact integers throughout: the same numbers from the shared arrays
+        return _pursuit(shared[1][col], shared[1], cand, shared[2][np.ix_(cand, cand)], shared[2][cand, col])
     if rows.size > FIT_ROWS:
         rows = rows[np.linspace(0, rows.size - 1, FIT_ROWS).astype(np.int64)]
     y = d2[rows, col].astype(np.float64)
@@ -69,22 +115,34 @@ def choose_predictors(d2: np.ndarray, col: int, before: list[int], rows: np.ndar
     # einsum, not BLAS: a multi-threaded BLAS spinning on a loaded machine is 20x slower here
     gram = np.einsum("ij,ik->jk", a, a, optimize=False)
     rhs = np.einsum("ij,i->j", a, y, optimize=False)
+    return _pursuit(y, a, cand, gram, rhs, shared=False)
+
+
+def _pursuit(y: np.ndarray, a: np.ndarray, cand: list[int], gram: np.ndarray, rhs: np.ndarray,
+             shared: bool = True) -> tuple[list[int], np.ndarray]:
+    """The matching pursuit of :func:`choose_predictors`; ``a``: the candidates' second differences, ``(rows,
+    candidates)``, or (``shared``) every column's, transposed."""
     norms = np.sqrt(np.diag(gram)) + 1e-9
     best: tuple[float, list[int], np.ndarray] = (_cost(y), [], np.zeros(0, dtype=np.int64))
     chosen: list[int] = []
     corr = rhs.copy()
-    for _ in range(min(MAX_PREDICTORS, len(cand))):
+    steps = min(MAX_PREDICTORS, len(cand))
+    for step in range(steps):
         score = np.abs(corr) / norms
         score[chosen] = -1.0
         j = int(np.argmax(score))
         if score[j] <= 1e-9:
             break
         chosen.append(j)
-        sub = gram[np.ix_(chosen, chosen)]
-        sol = np.linalg.lstsq(sub, rhs[chosen], rcond=None)[0]
-        corr = rhs - np.einsum("jk,k->j", gram[:, chosen], sol, optimize=False)
-        coef = np.clip(np.round(sol * (1 << COEF_SHIFT)), -COEF_LIMIT, COEF_LIMIT).astype(np.int64)
-        resid = y - np.einsum("ik,k->i", a[:, chosen], coef / float(1 << COEF_SHIFT), optimize=False)
+        sol = _lstsq(gram[chosen][:, chosen], rhs[chosen])
+        if step + 1 < steps:  # the correlations of the next step
+            corr = rhs - np.einsum("jk,k->j", gram[:, chosen], sol, optimize=False)
+        coef = np.minimum(np.maximum(np.round(sol * (1 << COEF_SHIFT)), -COEF_LIMIT), COEF_LIMIT).astype(np.int64)
+        weights = coef / float(1 << COEF_SHIFT)
+        if shared:  # exact sums: any order gives these numbers
+            resid = y - np.einsum("ki,k->i", a[[cand[i] for i in chosen]], weights, optimize=False)
+        else:
+            resid = y - np.einsum("ik,k->i", a[:, chosen], weights, optimize=False)
         cost = _cost(resid) + PREDICTOR_BITS * len(chosen)
         if cost < best[0]:
             best = (cost, [cand[i] for i in chosen], coef)
@@ -112,7 +170,9 @@ def unpack_predictors(order: list[int], data: bytes) -> list[tuple[list[int], np
     if pos + size > len(data):
         raise FormatError(None, "corrupted lossless stream (predictor table)")
     meta = unpack_small(data[pos : pos + size], at_most=(1 + MAX_PREDICTORS) * len(order)).tolist()
-    coefs = unzigzag(unpack_small(data[pos + size :], at_most=MAX_PREDICTORS * len(order))).tolist()
+    values = unzigzag(unpack_small(data[pos + size :], at_most=MAX_PREDICTORS * len(order)))
+    if values.size and int(np.abs(values).max()) > COEF_LIMIT:
+        raise FormatError(None, "corrupted lossless stream (predictor coefficient)")
     table: list[tuple[list[int], np.ndarray]] = []
     at = used = 0
     for i in range(len(order)):
@@ -120,13 +180,10 @@ def unpack_predictors(order: list[int], data: bytes) -> list[tuple[list[int], np
             raise FormatError(None, "corrupted lossless stream (predictor table)")
         n = meta[at]
         back = meta[at + 1 : at + 1 + n]
-        coef = coefs[used : used + n]
         at, used = at + 1 + n, used + n
-        if len(back) != n or len(coef) != n or any(not 1 <= b <= min(i, WINDOW) for b in back):
+        if len(back) != n or used > values.size or (n and not 1 <= min(back) <= max(back) <= min(i, WINDOW)):
             raise FormatError(None, "corrupted lossless stream (predictor table)")
-        if any(abs(v) > COEF_LIMIT for v in coef):
-            raise FormatError(None, "corrupted lossless stream (predictor coefficient)")
-        table.append(([order[i - b] for b in back], np.asarray(coef, dtype=np.int64)))
-    if at != len(meta) or used != len(coefs):
+        table.append(([order[i - b] for b in back], values[used - n : used]))
+    if at != len(meta) or used != values.size:
         raise FormatError(None, "corrupted lossless stream (predictor table length)")
     return table

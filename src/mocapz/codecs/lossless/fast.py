@@ -1,0 +1,59 @@
+"""Optional numba kernels of the lossless codec (``pip install mocapz[fast]``).
+
+The plain numpy path (:mod:`.coding`, :mod:`.decode`, :mod:`.encode`) stays the reference and works
+without numba; the kernels (:mod:`._kernels`) compute the very same integers, faster:
+
+* ``decode_residual_rows``: the residual stream's range decoder (constriction's ``RangeDecoder``: 64-bit
+  state, 32-bit words, quantized Laplace models at 24-bit precision, reimplemented with the same integer
+  arithmetic and the same CDF expression), fused with the escapes, the low bits and the running scale
+  states, in one pass over the rows instead of one Python call per row;
+* ``row_models``: the encoder's per-row low-bit counts and Laplace scales (the running states);
+* ``undo_prediction``: second differences from residuals and cross-channel predictions, then the two
+  cumulative sums, for every frame in one pass.
+
+numba is imported lazily: loading it (and the cached kernels) costs about half a second once per process,
+more than the numpy path spends on a clip or two, so it is loaded once this process has asked the lossless
+codec for :data:`LAZY_VALUES` values in all (or when numba is already imported); ``MOCAPZ_NO_NUMBA=1`` (or
+:func:`set_enabled`) turns it off. Either path gives the same bytes and values.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+from types import ModuleType
+
+LAZY_VALUES = 1_000_000  # values (frames x columns) coded or decoded before numba is worth loading
+
+_state: dict[str, ModuleType | None] = {}
+_work = [0]
+_enabled = os.environ.get("MOCAPZ_NO_NUMBA", "") in ("", "0")
+
+
+def set_enabled(flag: bool) -> bool:
+    """Use the numba kernels (when numba is installed) or not; returns the previous setting."""
+    global _enabled
+    before, _enabled = _enabled, bool(flag)
+    return before
+
+
+def kernels(work: int = 0, force: bool = False) -> ModuleType | None:
+    """The kernels module, or None: without numba, when turned off, or while loading it would not pay yet.
+
+    Args:
+        work: values (frames x columns) about to be coded or decoded (added to this process's total).
+        force: load numba now whatever the total.
+    """
+    if not _enabled:
+        return None
+    _work[0] += work
+    if "mod" not in _state:
+        if not (force or "numba" in sys.modules or _work[0] >= LAZY_VALUES):
+            return None
+        try:
+            from mocapz.codecs.lossless import _kernels
+        except ImportError:  # numba not installed
+            _state["mod"] = None
+        else:
+            _state["mod"] = _kernels
+    return _state["mod"]
