@@ -101,3 +101,39 @@ def test_stream_refusals() -> None:
         mocapz.StreamEncoder(m, "pga", max_error="2x")
     empty = mocapz.StreamEncoder(m, "lossless")
     assert mocapz.decompress(empty.close()).n_frames == 0
+
+
+def test_cli_compresses_a_pipe_block_by_block_and_streams_bvh_out(tmp_path) -> None:
+    """``compress -`` on a BVH written to a pipe sends a block's bytes before the input ends; the result
+    decodes to the same values; ``decompress -o - --format bvh`` writes the rows."""
+    import select
+    import subprocess
+
+    from test_cli import MOCAPZ
+
+    src = data_path("cmu/bvh/05_02.bvh")
+    text = src.read_bytes()
+    head_end = text.index(b"Frame Time:")
+    head_end = text.index(b"\n", head_end) + 1
+    rows = text[head_end:].splitlines(keepends=True)
+    proc = subprocess.Popen([MOCAPZ, "compress", "-", "-c", "-q"], stdin=subprocess.PIPE, stdout=subprocess.PIPE)
+    assert proc.stdin is not None and proc.stdout is not None
+    proc.stdin.write(text[:head_end] + b"".join(rows[:400]))  # 3.3 s of motion, the input still open
+    proc.stdin.flush()
+    ready, _, _ = select.select([proc.stdout], [], [], 60)
+    assert ready, "no block came out before the input ended"
+    first = proc.stdout.read1(1 << 20)
+    assert first[:5] == b"MCZ\x1a\x03" and len(first) > 1000  # the header and at least one block
+    proc.stdin.write(b"".join(rows[400:]))
+    proc.stdin.close()
+    rest = proc.stdout.read()
+    assert proc.wait(60) == 0
+    data = first + rest
+    m = mocapz.load(src)
+    assert np.array_equal(mocapz.decompress(data).values, m.values)
+    (tmp_path / "s.mcz").write_bytes(data)
+    res = subprocess.run([MOCAPZ, "decompress", tmp_path / "s.mcz", "-o", "-", "--format", "bvh", "--frames",
+                          "100:300"], capture_output=True, timeout=120)
+    assert res.returncode == 0, res.stderr
+    (tmp_path / "o.bvh").write_bytes(res.stdout)
+    assert np.array_equal(mocapz.load(tmp_path / "o.bvh").values, m.values[100:300])

@@ -15,6 +15,7 @@ import numpy as np
 from mocapz import blocking
 from mocapz.codecs import CodecInfo, get_codec
 from mocapz.errors import FormatError, OptionError
+from mocapz.format import blocks
 from mocapz.format.container import Container
 from mocapz.format.extras import PREFIX, attach, decode_extras, sections_of, split_sections
 from mocapz.format.layout import decode_header, encode_layout
@@ -165,3 +166,31 @@ def decode_stream(data: bytes, path: str | Path | None = None,
     spans = list(zip([0, *ends[:-1]], ends, strict=True))
     with decoder_errors(stream.codec, path):
         return blocking.decode_spans(info.decode, stream.blocks, spans, header, start, stop)
+
+
+def iter_decompress(data: bytes, path: str | Path | None = None, *,
+                    frames: slice | range | tuple[int, int] | None = None) -> Iterator[tuple[int, AnyMotion]]:
+    """The frames of a ``.mcz`` (or ``frames`` of it) block by block, as each is decoded: ``(the number of frames
+    selected in all, the next block's motion)``; a clip in one block comes in one piece. C3D extras are not
+    attached (use :func:`decompress`)."""
+    if len(data) > 4 and data[4] == STREAM_VERSION:
+        box, header = read_container(data, path)
+        stream = read_stream(data)
+        parts, lengths = stream.blocks, stream.block_frames
+    else:
+        box, header = read_container(data, path)
+        if not box.blocked:
+            start, stop = blocking.frame_range(frames, header.frames)
+            yield stop - start, decompress(data, path, frames=frames)
+            return
+        index, parts, _ = blocks.unpack(split_sections(box.sections)[0], header.frames)
+        lengths = [b - a for a, b in (index.bounds(i) for i in range(index.count))]
+    info = codec_of(box.codec, box.codec_version, path)
+    start, stop = blocking.frame_range(frames, header.frames)
+    ends = np.cumsum(lengths).tolist()
+    for part, a, b in zip(parts, [0, *ends[:-1]], ends, strict=True):
+        if b <= start or a >= stop:
+            continue
+        with decoder_errors(box.codec, path):
+            piece = blocking.decode_spans(info.decode, [part], [(a, b)], header, start, stop)
+        yield stop - start, piece

@@ -123,6 +123,12 @@ def _one(path: Path, out: Path, codec: str, options: dict[str, Any], block: str 
     from mocapz.metrics.figures import evaluate, size_figures
 
     name = STDIN_NAME if str(path) == "-" else str(path)
+    if str(path) == "-" and rng == (None, None, None) and unit is None:
+        from mocapz.cli.streaming import compress_bvh_stream, is_bvh_stream
+
+        stdin = click.get_binary_stream("stdin")
+        if is_bvh_stream(stdin, fmt_name):  # a capture written to a pipe: each block out as soon as it is full
+            return compress_bvh_stream(stdin, out, codec, options, block, force, name, say)
     if str(path) == "-":
         data_in = click.get_binary_stream("stdin").read()
         ext = f".{fmt_name.lower()}" if fmt_name else sniff(data_in)

@@ -83,15 +83,22 @@ def _one(path: Path, root: Path | None, output: Path | None, many: bool, fmt_nam
         out = _output_for(path, root, output, many, fmt_name, header.source_format)
         if not is_stdout(out):
             check_outputs([out], force, folders_made=many)
+        sel = frame_slice(*rng, header.frame_rate, header.frames)
+        if is_stdout(out) and out_ext(fmt_name, header.source_format) == ".bvh" and header.kind == "skeleton":
+            from mocapz.cli.streaming import decompress_bvh_to_stdout
+
+            n = decompress_bvh_to_stdout(data, name, sel)  # block by block, as each is decoded
+            say.info(f"{name} -> -: {n} frames, {time.perf_counter() - t0:.3f} s")
+            return {"input": name, "outputs": ["-"], "frames": n}
         # a file coded in blocks decodes only the blocks the range needs
-        motion = do_decompress(data, name, frames=frame_slice(*rng, header.frame_rate, header.frames))
+        motion = do_decompress(data, name, frames=sel)
         rng = (None, None, None)
     motion = cut(motion, frame_slice(*rng, motion.frame_rate, motion.n_frames))
     elapsed = time.perf_counter() - t0
     if path.suffix.lower() == LIBRARY_SUFFIX or clip is not None:
         out = _output_for(path, root, output, many, fmt_name, motion.source_format)
     if is_stdout(out):
-        motion_to_stdout(motion, f".{fmt_name.lower()}" if fmt_name else _source_ext(motion.source_format))
+        motion_to_stdout(motion, out_ext(fmt_name, motion.source_format))
         written = ["-"]
     else:
         out.parent.mkdir(parents=True, exist_ok=True)
@@ -99,6 +106,11 @@ def _one(path: Path, root: Path | None, output: Path | None, many: bool, fmt_nam
     say.info(f"{name} -> {', '.join(written)}: {motion.n_frames} frames, {elapsed:.3f} s")
     return {"input": name, "outputs": written, "frames": motion.n_frames,
             "decode_ms_per_frame": 1000 * elapsed / max(motion.n_frames, 1)}
+
+
+def out_ext(fmt_name: str | None, source_format: str) -> str:
+    """The extension of the format written: ``--format``, else the source's."""
+    return f".{fmt_name.lower()}" if fmt_name else _source_ext(source_format)
 
 
 def _source_ext(source_format: str) -> str:

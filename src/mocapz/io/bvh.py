@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -170,7 +171,9 @@ def _parse_hierarchy(tok: _Tokens, path: Path) -> Skeleton:
     )
 
 
-def _parse_motion(lines: list[str], motion_line: int, n_channels: int, path: Path) -> tuple[np.ndarray, float]:
+def _parse_motion(lines: list[str], motion_line: int, n_channels: int, path: Path,
+                  rows: bool = True) -> tuple[np.ndarray, float]:
+    """The frame rows (``(frames, channels)``; none with ``rows=False``) and the frame time after MOTION."""
     i = motion_line + 1
 
     def header(key: str) -> str:
@@ -199,6 +202,8 @@ def _parse_motion(lines: list[str], motion_line: int, n_channels: int, path: Pat
         raise FormatError(path, f"negative frame count {frames}", i)
     if not (frame_time > 0 and np.isfinite(frame_time)):
         raise FormatError(path, f"frame time must be positive, got {frame_time}", i)
+    if not rows:
+        return np.zeros((0, n_channels)), frame_time
     body = [ln for ln in lines[i:] if ln.strip()]
     first_data_line = i + 1
     if len(body) < frames:
@@ -251,6 +256,20 @@ def _set_units(skeleton: Skeleton) -> None:
 
 def write_bvh(motion: Motion, path: str | os.PathLike[str], force: bool = False) -> None:
     """Write a :class:`Motion` as BVH, at the source's decimals where known (else 6)."""
+    head = bvh_head(motion, motion.n_frames, path)
+    if not np.isfinite(motion.channels).all():
+        raise FormatError(path, "refusing to write non-finite channel values")
+    text = head + (format_rows(motion.channels, bvh_decimals(motion)) if motion.n_frames else "")
+    atomic_write(path, lambda tmp: tmp.write_text(text), force=force)
+
+
+def bvh_decimals(motion: Motion) -> Any:
+    """The decimals the rows are written with (the source's, else None: shortest exact)."""
+    return motion.decimals if motion.decimals is not None else motion.metadata.get("write_decimals", None)
+
+
+def bvh_head(motion: Motion, frames: int, path: str | os.PathLike[str] | None = None) -> str:
+    """The text of a BVH file up to its first frame row (HIERARCHY, MOTION, ``Frames: frames``, Frame Time)."""
     sk = motion.skeleton
     if sk.angle_unit != "deg":
         raise FormatError(path, "BVH stores degrees; convert the motion first")
@@ -283,10 +302,19 @@ def write_bvh(motion: Motion, path: str | os.PathLike[str], force: bool = False)
     for root in np.flatnonzero(sk.parents < 0):
         emit(int(root), 0)
     frame_time = motion.metadata.get("frame_time", 1.0 / motion.frame_rate)
-    out += ["MOTION", f"Frames: {motion.n_frames}", f"Frame Time: {frame_time:.7g}"]
-    dec = motion.decimals if motion.decimals is not None else motion.metadata.get("write_decimals", None)
-    if not np.isfinite(motion.channels).all():
-        raise FormatError(path, "refusing to write non-finite channel values")
-    text = "\n".join(out) + "\n" + (format_rows(motion.channels, dec) if motion.n_frames else "")
+    out += ["MOTION", f"Frames: {frames}", f"Frame Time: {frame_time:.7g}"]
+    return "\n".join(out) + "\n"
 
-    atomic_write(path, lambda tmp: tmp.write_text(text), force=force)
+
+def parse_bvh_head(lines: list[str], path: Path) -> tuple[Skeleton, float]:
+    """Skeleton and frame time of a BVH's text up to and including its ``Frame Time:`` line (the ``Frames:``
+    count is not used: a stream does not know it)."""
+    if not lines or lines[0].strip().upper() != "HIERARCHY":
+        raise FormatError(path, "not a BVH file (first line is not HIERARCHY)", 1)
+    motion_line = next((i for i, ln in enumerate(lines) if ln.strip().upper() == "MOTION"), None)
+    if motion_line is None:
+        raise FormatError(path, "no MOTION section (truncated file?)", len(lines))
+    skeleton = _parse_hierarchy(_Tokens(lines[1:motion_line], path, first_line=2), path)
+    _, frame_time = _parse_motion(lines, motion_line, skeleton.n_channels, path, rows=False)
+    _set_units(skeleton)
+    return skeleton, frame_time
