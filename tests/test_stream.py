@@ -124,10 +124,8 @@ def test_cli_compresses_a_pipe_block_by_block_and_streams_bvh_out(tmp_path) -> N
     assert ready, "no block came out before the input ended"
     first = proc.stdout.read1(1 << 20)
     assert first[:5] == b"MCZ\x1a\x03" and len(first) > 1000  # the header and at least one block
-    proc.stdin.write(b"".join(rows[400:]))
-    proc.stdin.close()
-    rest = proc.stdout.read()
-    assert proc.wait(60) == 0
+    rest, _ = proc.communicate(b"".join(rows[400:]), timeout=120)  # writes and reads at once: no pipe deadlock
+    assert proc.returncode == 0
     data = first + rest
     m = mocapz.load(src)
     assert np.array_equal(mocapz.decompress(data).values, m.values)
