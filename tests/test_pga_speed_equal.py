@@ -19,14 +19,14 @@ pytest.importorskip("numba")
 
 pga_decode = importlib.import_module("mocapz.codecs.pga.decode")  # the module (the package exports a function)
 
-CLIPS = [("09_06", None), ("02_03", None), ("12_01", 300), ("06_13", 400)]
+CLIPS = [("09_06", None), ("02_03", None), ("12_01", 300), ("06_13", 400), ("01_01", 300)]  # 01_01: ASF/AMC
 
 
 @pytest.fixture(scope="module")
 def coded() -> dict[str, bytes]:
     out = {}
     for name, stop in CLIPS:
-        m = mocapz.load(data_path(f"cmu/bvh/{name}.bvh"))
+        m = mocapz.load(data_path(f"cmu/asfamc/{name}.amc" if name == "01_01" else f"cmu/bvh/{name}.bvh"))
         if stop:
             m = m.slice(0, stop)
         out[name] = mocapz.compress(m, codec="pga", geodesics=12, lod_root=1, lod_effectors=1)
@@ -72,6 +72,17 @@ def test_decoded_channels_equal(coded: dict[str, bytes], name: str) -> None:
     plain, fast = _both(lambda: mocapz.decompress(coded[name]).channels)
     assert plain.shape == fast.shape
     assert np.allclose(plain, fast, rtol=0, atol=1e-9)
+
+
+def test_euler_kernel_is_used_on_bvh_and_amc() -> None:
+    from mocapz.codecs.pga.channels import euler_tables
+    from mocapz.codecs.pga.joints import inner_joints
+
+    for rel in ("cmu/bvh/09_06.bvh", "cmu/asfamc/01_01.amc"):
+        sk = mocapz.load(data_path(rel)).skeleton
+        tables = euler_tables(sk, np.asarray(inner_joints(sk)))
+        assert tables is not None
+        assert tables[5].any() == (rel.endswith(".amc"))  # ASF axis frames turn the rotations
 
 
 def test_pose_equal(coded: dict[str, bytes]) -> None:

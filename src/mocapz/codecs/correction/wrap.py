@@ -184,8 +184,12 @@ def apply(sections: Sections, header: ClipHeader, decode: Decoder) -> AnyMotion:
     if isinstance(base_motion, Motion):
         rot = np.flatnonzero(header.rotation_mask)
         half = header.period / 2
+        # mod(o + half, period) - half where the correction moved a value (only there: a float mod is slow)
         o, moved = out[:, rot], y[:, rot] != 0
-        out[:, rot] = np.where(moved, np.mod(o + half, header.period) - half, o)
+        w = o + half
+        np.mod(w, header.period, out=w, where=moved)
+        np.subtract(w, half, out=o, where=moved)
+        out[:, rot] = o
         return base_motion.with_channels(out)
     return base_motion.with_positions(out.reshape(base_motion.positions.shape))
 

@@ -82,10 +82,14 @@ def channels_from_pose(skeleton: Skeleton, local_rot: np.ndarray, root_pos: np.n
     """Channel values ``(F, C)`` of local rotations ``(F, J, 3, 3)``, the root position ``(F, 3)`` and the
     non-root position channels ``(F, p)`` (file units). Angles are unwrapped along time (a full turn is
     360 degrees or 2 pi radians, by the skeleton's angle unit). Always finite (NaN and inf replaced)."""
-    n = local_rot.shape[0]
-    root_cols, other_cols = position_columns(skeleton)
-    out = np.zeros((n, skeleton.n_channels))
+    out = np.zeros((local_rot.shape[0], skeleton.n_channels))
     channels_from_rotations(skeleton, local_rot, out)
+    return finish_channels(skeleton, out, root_pos, other)
+
+
+def finish_channels(skeleton: Skeleton, out: np.ndarray, root_pos: np.ndarray, other: np.ndarray) -> np.ndarray:
+    """:func:`channels_from_pose` after the Euler angles are in ``out``: unwrap them, add the positions."""
+    root_cols, other_cols = position_columns(skeleton)
     rot_cols = skeleton.rotation_columns()
     period = 360.0 if skeleton.angle_unit == "deg" else 2 * np.pi
     out[:, rot_cols] = unwrap(out[:, rot_cols], period)
@@ -94,3 +98,33 @@ def channels_from_pose(skeleton: Skeleton, local_rot: np.ndarray, root_pos: np.n
         out[:, c] = root_pos[:, "XYZ".index(labels[c].split(".")[-1][0])]
     out[:, other_cols] = other
     return np.nan_to_num(out)
+
+
+def euler_tables(skeleton: Skeleton, joints: np.ndarray) -> tuple[np.ndarray, ...] | None:
+    """What the compiled :func:`~mocapz.codecs.pga.ikjit` ``euler_channels`` kernel needs to write the Euler
+    channels of the root and of the model's ``joints``: per rotating joint its source (-1: root, else model
+    slot), axes ``ijk``, parity, output columns, axis frame; None when a joint has a repeated axis (proper
+    Euler angles: the NumPy path) or a rotating joint is neither the root nor a model joint."""
+    axis = skeleton.axis
+    assert axis is not None
+    slot = {int(j): i for i, j in enumerate(joints)}
+    slices = skeleton.channel_slices()
+    rows = []
+    for j in range(skeleton.n_joints):
+        order = skeleton.rotation_order[j]
+        if not order:
+            continue
+        seq = (order + "".join(a for a in "XYZ" if a not in order)).upper()
+        if len(set(seq)) != 3 or (j != 0 and j not in slot):
+            return None
+        i, jj, k = ("XYZ".index(a) for a in seq)
+        chs = skeleton.channels[j]
+        cols = [slices[j].start + chs.index(f"{a}rotation") for a in order] + [-1] * (3 - len(order))
+        turned = not np.array_equal(axis[j], np.eye(3))
+        rows.append((-1 if j == 0 else slot[j], (i, jj, k), 1.0 if (jj - i) % 3 == 1 else -1.0, cols,
+                     np.asarray(axis[j], dtype=np.float64), turned))
+    if not rows:
+        return None
+    return (np.array([r[0] for r in rows], dtype=np.int64), np.array([r[1] for r in rows], dtype=np.int64),
+            np.array([r[2] for r in rows]), np.array([r[3] for r in rows], dtype=np.int64),
+            np.ascontiguousarray(np.stack([r[4] for r in rows])), np.array([r[5] for r in rows], dtype=np.bool_))

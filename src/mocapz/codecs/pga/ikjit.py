@@ -360,4 +360,59 @@ def _compile() -> dict[str, Any]:
                 rodrigues1(w[3 * n], w[3 * n + 1], w[3 * n + 2], r, r, 0, False)
                 mul33(mean[n], r[:, :, 0], out[fi, n])
 
-    return {"solve_frames": solve_frames, "pose": pose, "solve_block": solve_block, "forward": forward}
+    @jit
+    def euler_channels(x, basis_t, mean, root_rot, src, ijk, sign, cols, axes, has_axis, scale, out):  # noqa: ANN001
+        """Euler channels of the decoded pose, straight into ``out`` (F, C): per rotating joint ``q`` its
+        rotation (``src[q]``: the root's ``root_rot`` (F, 3, 3) when -1, else model slot ``src[q]`` of
+        coordinates ``x`` (F, k)), turned into the joint's axis frame when ``has_axis[q]``, as the angles of
+        the intrinsic sequence ``ijk[q]`` (parity ``sign[q]``; :func:`mocapz.codecs.pga.channels.euler_angles`)
+        times ``scale``, written to columns ``cols[q]`` (-1: not a channel). Returns the number of non-finite
+        rotation entries (damaged streams)."""
+        f, k = x.shape
+        n3 = basis_t.shape[1]
+        w = np.empty(n3)
+        r = np.empty((3, 3, 1))
+        rm = np.empty((3, 3))
+        tmp = np.empty((3, 3))
+        ang = np.empty(3)
+        bad = 0
+        for fi in range(f):
+            w[:] = 0.0
+            for c in range(k):
+                xc = x[fi, c]
+                for i in range(n3):
+                    w[i] += basis_t[c, i] * xc
+            for q in range(src.size):
+                sq = src[q]
+                if sq < 0:
+                    rm[:, :] = root_rot[fi]
+                else:
+                    rodrigues1(w[3 * sq], w[3 * sq + 1], w[3 * sq + 2], r, r, 0, False)
+                    mul33(mean[sq], r[:, :, 0], rm)
+                for a in range(3):
+                    for b in range(3):
+                        if not math.isfinite(rm[a, b]):
+                            bad += 1
+                if has_axis[q]:
+                    ax = axes[q]
+                    for a in range(3):
+                        for b in range(3):
+                            tmp[a, b] = ax[0, a] * rm[0, b] + ax[1, a] * rm[1, b] + ax[2, a] * rm[2, b]
+                    mul33(tmp, ax, rm)
+                i, j, kk = ijk[q, 0], ijk[q, 1], ijk[q, 2]
+                sg = sign[q]
+                cb = math.hypot(rm[i, i], rm[i, j])
+                ang[1] = math.atan2(sg * rm[i, kk], cb)
+                if cb < 1e-9:
+                    ang[0] = math.atan2(sg * rm[kk, j], rm[j, j])
+                    ang[2] = 0.0
+                else:
+                    ang[0] = math.atan2(-sg * rm[j, kk], rm[kk, kk])
+                    ang[2] = math.atan2(-sg * rm[i, j], rm[i, i])
+                for t in range(3):
+                    if cols[q, t] >= 0:
+                        out[fi, cols[q, t]] = ang[t] * scale if scale != 1.0 else ang[t]
+        return bad
+
+    return {"solve_frames": solve_frames, "pose": pose, "solve_block": solve_block, "forward": forward,
+            "euler_channels": euler_channels}
