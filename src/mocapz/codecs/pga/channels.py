@@ -97,6 +97,8 @@ def finish_channels(skeleton: Skeleton, out: np.ndarray, root_pos: np.ndarray, o
     for c in root_cols:
         out[:, c] = root_pos[:, "XYZ".index(labels[c].split(".")[-1][0])]
     out[:, other_cols] = other
+    if np.isfinite(out).all():  # np.nan_to_num's passes only when they change something (same values)
+        return out
     return np.nan_to_num(out)
 
 
