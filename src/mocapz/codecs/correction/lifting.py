@@ -53,18 +53,20 @@ def _pad(a: np.ndarray, n: int) -> np.ndarray:
     return np.concatenate([a, np.repeat(a[-1:], n - a.shape[0], axis=0)])
 
 
-def _predict(y: np.ndarray, h: int) -> tuple[np.ndarray, np.ndarray]:
-    """New sample indices ``(m,)`` of level spacing ``h`` and their predictions ``(m, columns)`` from the
-    decoded samples of spacing ``2h`` in ``y`` ``(n, columns)``."""
+def _predict(y: np.ndarray, h: int) -> tuple[slice, np.ndarray]:
+    """New sample rows (the slice of the odd multiples of ``h``) of level spacing ``h`` and their predictions
+    ``(m, columns)`` from the decoded samples of spacing ``2h`` in ``y`` ``(n, columns)`` (strided views, no
+    gathers)."""
     n = y.shape[0]
-    idx = np.arange(h, n - 1, 2 * h)
-    left, right = y[idx - h], y[idx + h]
+    new = slice(h, n - 1, 2 * h)
+    m = len(range(h, n - 1, 2 * h))
+    left, right = y[0 : 2 * h * m : 2 * h], y[2 * h : 2 * h * (m + 1) : 2 * h]  # rows idx - h, idx + h
     pred = 0.5 * (left + right)
-    inner = (idx - 3 * h >= 0) & (idx + 3 * h <= n - 1)
-    if inner.any():
-        i = idx[inner]
-        pred[inner] = (9.0 * (y[i - h] + y[i + h]) - (y[i - 3 * h] + y[i + 3 * h])) / 16.0
-    return idx, pred
+    # the 4-point filter where idx - 3h >= 0 and idx + 3h <= n - 1: t = 1 .. hi - 1 (idx = h + 2ht)
+    hi = min(m, (n - 1 - 4 * h) // (2 * h) + 1)
+    if hi > 1:
+        pred[1:hi] = (9.0 * (left[1:hi] + right[1:hi]) - (left[0 : hi - 1] + right[2 : hi + 1])) / 16.0
+    return new, pred
 
 
 def quantise(x: np.ndarray, tol: np.ndarray, levels: int) -> tuple[np.ndarray, np.ndarray]:
@@ -151,9 +153,10 @@ def decode(q_all: np.ndarray, tol: np.ndarray, levels: int) -> np.ndarray:
     for level in range(lv - 1, -1, -1):
         h = 1 << level
         idx, pred = _predict(y, h)
-        q = q_all[pos : pos + idx.size]
-        if q.shape[0] != idx.size:
+        m = pred.shape[0]
+        q = q_all[pos : pos + m]
+        if q.shape[0] != m:
             raise FormatError(None, "corrupted correction stream (detail count)")
         y[idx] = pred + q * (STEP * level_factor(level) * tp[idx])
-        pos += idx.size
+        pos += m
     return y[:frames]

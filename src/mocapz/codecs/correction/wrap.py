@@ -175,15 +175,22 @@ def apply(sections: Sections, header: ClipHeader, decode: Decoder) -> AnyMotion:
             base_motion = zero_motion(header, sections.get("c.gaps"))
     except KeyError as exc:
         raise FormatError(None, f"corrupted correction (missing section {exc})") from None
-    tol = bounds.tol_of(codes)[None, :] * 2.0 ** (-lev[:, groups].astype(np.float64) / 2.0)
+    # 2 ** (-level / 2) from a table of the levels' values (the same numbers, without a power per value)
+    halves = 2.0 ** (-np.arange(int(lev.max(initial=0)) + 1, dtype=np.float64) / 2.0)
+    tol = bounds.tol_of(codes)[None, :] * halves[lev][:, groups]
     y = lifting.decode(q, tol, levels)
     if not y.any():
         return base_motion
     out = value_matrix(base_motion) + y
     if isinstance(base_motion, Motion):
-        wrap = header.rotation_mask[None, :] & (y != 0)
+        rot = np.flatnonzero(header.rotation_mask)
         half = header.period / 2
-        out = np.where(wrap, np.mod(out + half, header.period) - half, out)
+        # mod(o + half, period) - half where the correction moved a value (only there: a float mod is slow)
+        o, moved = out[:, rot], y[:, rot] != 0
+        w = o + half
+        np.mod(w, header.period, out=w, where=moved)
+        np.subtract(w, half, out=o, where=moved)
+        out[:, rot] = o
         return base_motion.with_channels(out)
     return base_motion.with_positions(out.reshape(base_motion.positions.shape))
 

@@ -12,29 +12,69 @@ from mocapz.codecs.pga.joints import position_columns
 from mocapz.model.skeleton import Skeleton
 
 
+def euler_angles(r: np.ndarray, order: str) -> np.ndarray:
+    """Angles ``(..., 3)`` (radians) of the intrinsic Euler sequence ``order`` (three distinct axes, e.g.
+    ``"ZXY"``: ``R = Rz(a) @ Rx(b) @ Ry(c)``) of rotations ``(..., 3, 3)``, by the closed form (the middle
+    angle in [-pi/2, pi/2]; at gimbal lock, ``cos b`` below 1e-9, the third angle is 0)."""
+    i, j, k = ("XYZ".index(a) for a in order)
+    s = 1.0 if (j - i) % 3 == 1 else -1.0  # +1 for the cyclic orders XYZ, YZX, ZXY
+    cb = np.hypot(r[..., i, i], r[..., i, j])
+    out = np.empty((*r.shape[:-2], 3))
+    out[..., 1] = np.arctan2(s * r[..., i, k], cb)
+    out[..., 0] = np.arctan2(-s * r[..., j, k], r[..., k, k])
+    out[..., 2] = np.arctan2(-s * r[..., i, j], r[..., i, i])
+    lock = cb < 1e-9
+    if lock.any():
+        out[lock, 0] = np.arctan2(s * r[..., k, j][lock], r[..., j, j][lock])
+        out[lock, 2] = 0.0
+    return out
+
+
 def channels_from_rotations(skeleton: Skeleton, local_rot: np.ndarray, out: np.ndarray,
                             joints: np.ndarray | None = None) -> None:
     """Write Euler channels (the skeleton's angle unit) of local rotations ``(F, J, 3, 3)`` into ``out``
-    ``(F, C)`` in place, for the given joints (all when None)."""
+    ``(F, C)`` in place, for the given joints (all when None). Joints of the same Euler sequence are
+    converted together."""
     deg = skeleton.angle_unit == "deg"
     axis = skeleton.axis
     assert axis is not None
     slices = skeleton.channel_slices()
     todo = range(skeleton.n_joints) if joints is None else joints
+    by_seq: dict[str, list[int]] = {}
     for j in todo:
         order = skeleton.rotation_order[j]
-        if not order:
-            continue
-        r = local_rot[:, j]
-        if not np.array_equal(axis[j], np.eye(3)):
-            r = axis[j].T @ r @ axis[j]
-        seq = order + "".join(a for a in "XYZ" if a not in order)
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            ang = Rotation.from_matrix(r).as_euler(seq.upper(), degrees=deg)[:, : len(order)]
-        chs = skeleton.channels[j]
-        for i, a in enumerate(order):
-            out[:, slices[j].start + chs.index(f"{a}rotation")] = ang[:, i]
+        if order:
+            by_seq.setdefault((order + "".join(a for a in "XYZ" if a not in order)).upper(), []).append(int(j))
+    for seq, group in by_seq.items():
+        r = local_rot[:, group]
+        turned = [g for g, j in enumerate(group) if not np.array_equal(axis[j], np.eye(3))]
+        if turned:
+            r = r.copy()
+            ax = axis[[group[g] for g in turned]]
+            r[:, turned] = np.swapaxes(ax, -1, -2)[None] @ r[:, turned] @ ax[None]
+        if len(set(seq)) == 3:
+            ang = euler_angles(r, seq)
+            if deg:
+                ang = np.rad2deg(ang)
+        else:  # a repeated axis (proper Euler angles): scipy's conversion
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                ang = Rotation.from_matrix(r.reshape(-1, 3, 3)).as_euler(seq, degrees=deg).reshape(*r.shape[:2], 3)
+        for g, j in enumerate(group):
+            order = skeleton.rotation_order[j]
+            chs = skeleton.channels[j]
+            for i, a in enumerate(order):
+                out[:, slices[j].start + chs.index(f"{a}rotation")] = ang[:, g, i]
+
+
+def unwrap(values: np.ndarray, period: float) -> np.ndarray:
+    """``np.unwrap(values, period=period, axis=0)``, quicker when few columns jump by half a turn or more
+    (only those are unwrapped; the others are returned as they are, plus 0.0 as np.unwrap adds)."""
+    jumps = ~(np.abs(np.diff(values, axis=0)) < period / 2).all(axis=0)  # NaN counts as a jump, as in np.unwrap
+    out = values + 0.0
+    if jumps.any():
+        out[:, jumps] = np.unwrap(values[:, jumps], period=period, axis=0)
+    return out
 
 
 def channels_from_pose(skeleton: Skeleton, local_rot: np.ndarray, root_pos: np.ndarray,
@@ -42,15 +82,51 @@ def channels_from_pose(skeleton: Skeleton, local_rot: np.ndarray, root_pos: np.n
     """Channel values ``(F, C)`` of local rotations ``(F, J, 3, 3)``, the root position ``(F, 3)`` and the
     non-root position channels ``(F, p)`` (file units). Angles are unwrapped along time (a full turn is
     360 degrees or 2 pi radians, by the skeleton's angle unit). Always finite (NaN and inf replaced)."""
-    n = local_rot.shape[0]
-    root_cols, other_cols = position_columns(skeleton)
-    out = np.zeros((n, skeleton.n_channels))
+    out = np.zeros((local_rot.shape[0], skeleton.n_channels))
     channels_from_rotations(skeleton, local_rot, out)
+    return finish_channels(skeleton, out, root_pos, other)
+
+
+def finish_channels(skeleton: Skeleton, out: np.ndarray, root_pos: np.ndarray, other: np.ndarray) -> np.ndarray:
+    """:func:`channels_from_pose` after the Euler angles are in ``out``: unwrap them, add the positions."""
+    root_cols, other_cols = position_columns(skeleton)
     rot_cols = skeleton.rotation_columns()
     period = 360.0 if skeleton.angle_unit == "deg" else 2 * np.pi
-    out[:, rot_cols] = np.unwrap(out[:, rot_cols], period=period, axis=0)
+    out[:, rot_cols] = unwrap(out[:, rot_cols], period)
     labels = skeleton.channel_labels()
     for c in root_cols:
         out[:, c] = root_pos[:, "XYZ".index(labels[c].split(".")[-1][0])]
     out[:, other_cols] = other
+    if np.isfinite(out).all():  # np.nan_to_num's passes only when they change something (same values)
+        return out
     return np.nan_to_num(out)
+
+
+def euler_tables(skeleton: Skeleton, joints: np.ndarray) -> tuple[np.ndarray, ...] | None:
+    """What the compiled :func:`~mocapz.codecs.pga.ikjit` ``euler_channels`` kernel needs to write the Euler
+    channels of the root and of the model's ``joints``: per rotating joint its source (-1: root, else model
+    slot), axes ``ijk``, parity, output columns, axis frame; None when a joint has a repeated axis (proper
+    Euler angles: the NumPy path) or a rotating joint is neither the root nor a model joint."""
+    axis = skeleton.axis
+    assert axis is not None
+    slot = {int(j): i for i, j in enumerate(joints)}
+    slices = skeleton.channel_slices()
+    rows = []
+    for j in range(skeleton.n_joints):
+        order = skeleton.rotation_order[j]
+        if not order:
+            continue
+        seq = (order + "".join(a for a in "XYZ" if a not in order)).upper()
+        if len(set(seq)) != 3 or (j != 0 and j not in slot):
+            return None
+        i, jj, k = ("XYZ".index(a) for a in seq)
+        chs = skeleton.channels[j]
+        cols = [slices[j].start + chs.index(f"{a}rotation") for a in order] + [-1] * (3 - len(order))
+        turned = not np.array_equal(axis[j], np.eye(3))
+        rows.append((-1 if j == 0 else slot[j], (i, jj, k), 1.0 if (jj - i) % 3 == 1 else -1.0, cols,
+                     np.asarray(axis[j], dtype=np.float64), turned))
+    if not rows:
+        return None
+    return (np.array([r[0] for r in rows], dtype=np.int64), np.array([r[1] for r in rows], dtype=np.int64),
+            np.array([r[2] for r in rows]), np.array([r[3] for r in rows], dtype=np.int64),
+            np.ascontiguousarray(np.stack([r[4] for r in rows])), np.array([r[5] for r in rows], dtype=np.bool_))

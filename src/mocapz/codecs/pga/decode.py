@@ -8,8 +8,8 @@ from typing import Any
 
 import numpy as np
 
-from mocapz.codecs.pga import lifting
-from mocapz.codecs.pga.channels import channels_from_pose
+from mocapz.codecs.pga import ikjit, lifting
+from mocapz.codecs.pga.channels import channels_from_pose, euler_tables, finish_channels
 from mocapz.codecs.pga.clip import targets_in_root_frame
 from mocapz.codecs.pga.effectors import effector_points
 from mocapz.codecs.pga.ik import IKProblem, make_problem
@@ -183,6 +183,18 @@ def rebuild(skeleton: Skeleton, d: Decoded, s: PGASettings, targets: np.ndarray)
                        lam_prior=s.lam_prior if d.coords is not None else 0.0, iterations=s.iterations)
     if not np.isfinite(x).all():  # pragma: no cover - solve() keeps finite values
         x = np.nan_to_num(x0)
+    jit = ikjit.kernels()
+    tables = euler_tables(skeleton, model.joints) if jit is not None else None
+    if tables is not None and jit is not None:  # the compiled path: the pose's Euler angles in one pass
+        out = np.zeros((n, skeleton.n_channels))
+        bad = jit["euler_channels"](np.ascontiguousarray(x, dtype=np.float64),
+                                    np.ascontiguousarray(model.basis.T, dtype=np.float64),
+                                    np.ascontiguousarray(model.mean, dtype=np.float64),
+                                    np.ascontiguousarray(d.root_rot, dtype=np.float64), *tables,
+                                    180.0 / np.pi if skeleton.angle_unit == "deg" else 1.0, out)
+        if bad:
+            raise FormatError(None, "corrupted PGA stream (poses out of range)")
+        return finish_channels(skeleton, out, d.root_pos, d.other)
     local = np.broadcast_to(np.eye(3), (n, skeleton.n_joints, 3, 3)).copy()
     local[:, 0] = d.root_rot
     local[:, model.joints] = pose(model, x)

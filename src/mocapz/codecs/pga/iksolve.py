@@ -24,10 +24,12 @@ from __future__ import annotations
 
 import numpy as np
 
+from mocapz.codecs.pga import ik, ikjit
 from mocapz.codecs.pga.ik import IKProblem
 from mocapz.codecs.pga.model import PGAModel
 
 BLOCK = 512  # frames per block when frames are independent (lam_temporal == 0)
+ACCEPT = ik.ACCEPT
 _CROSS = ((1, 2), (2, 0), (0, 1))  # (c1, c2) of component c of a cross product
 
 
@@ -67,6 +69,12 @@ def _mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 def pose(model: PGAModel, x: np.ndarray) -> np.ndarray:
     """:meth:`PGAModel.pose` with frames last inside: rotations ``(F, n, 3, 3)`` of coordinates ``(F, k)``."""
+    jit = ikjit.kernels()
+    if jit is not None:
+        out = np.empty((x.shape[0], model.mean.shape[0], 3, 3))
+        jit["pose"](np.ascontiguousarray(x, dtype=np.float64), np.ascontiguousarray(model.basis.T, dtype=np.float64),
+                    np.ascontiguousarray(model.mean, dtype=np.float64), out)
+        return out
     w = (model.basis @ x.T).reshape(-1, 3, x.shape[0])
     return _mul(model.mean[..., None], rodrigues(w)[0]).transpose(3, 0, 1, 2)
 
@@ -190,6 +198,9 @@ def solve_fast(problem: IKProblem, targets: np.ndarray, x0: np.ndarray, *, x_pri
     """:func:`mocapz.codecs.pga.ik.solve`, faster (same arguments; the same result to rounding): ``(F, k)``
     coordinates (radians) for effector targets ``(F, e, 3)`` in the root frame (file units)."""
     fast = FastIK(problem)
+    jit = ikjit.kernels()
+    if jit is not None and lam_temporal <= 0:
+        return _solve_jit(jit, fast, targets, x0, x_prior, lam_prior, iterations)
     x = np.array(x0, dtype=np.float64).T.copy()  # (k, F)
     f = x.shape[1]
     trans = problem.trans.transpose(1, 2, 0) if problem.trans.ndim == 3 else problem.trans  # (J, 3, F)
@@ -201,6 +212,33 @@ def solve_fast(problem: IKProblem, targets: np.ndarray, x0: np.ndarray, *, x_pri
         x[:, a:b] = _solve_block(fast, tr, tgt[:, a:b], x[:, a:b], None if prior is None else prior[:, a:b],
                                  lam_temporal, lam_prior, iterations)
     return x.T.copy()
+
+
+def _solve_jit(jit: dict, fast: FastIK, targets: np.ndarray, x0: np.ndarray, x_prior: np.ndarray | None,
+               lam_prior: float, iterations: int) -> np.ndarray:
+    """:func:`solve_fast` without the temporal regulariser, by the compiled kernel (frames independent)."""
+    problem = fast.problem
+    x = np.array(x0, dtype=np.float64, order="C")
+    f, k = x.shape
+    use_prior = x_prior is not None and lam_prior > 0
+    # every argument C-contiguous float64 / int64, whatever the caller passes: one compiled signature
+    prior = np.ascontiguousarray(x_prior, dtype=np.float64) if use_prior else np.zeros((f, k))
+    per_frame = problem.trans.ndim == 3
+    trans = np.ascontiguousarray(problem.trans if per_frame else problem.trans[None], dtype=np.float64)
+    order = np.asarray(fast.order, dtype=np.int64)
+    mslot = np.array([fast.slot_of.get(i, -1) for i in range(order.size)], dtype=np.int64)
+    moves = np.zeros((fast.m_place.size, fast.n_eff), dtype=np.bool_)
+    for first, stop, _, effs in fast.groups:
+        moves[first:stop, list(effs)] = True
+    rest = np.ascontiguousarray(np.stack([r[..., 0] for r in fast.rest]) if fast.rest else np.zeros((0, 3, 3)),
+                                dtype=np.float64)
+    jit["solve_frames"](x, np.ascontiguousarray(targets, dtype=np.float64).reshape(f, -1), prior, trans,
+                        bool(per_frame), fast.basis, np.ascontiguousarray(fast.basis.T),
+                        np.ascontiguousarray(fast.mean[..., 0]), order,
+                        np.asarray(fast.parent, dtype=np.int64), mslot, rest, fast.carrier, fast.end_off,
+                        fast.m_place, moves, 1.0 / float(problem.scale) ** 2, float(lam_prior), bool(use_prior),
+                        int(iterations))
+    return x
 
 
 def _solve_block(fast: FastIK, trans: np.ndarray, tgt: np.ndarray, x: np.ndarray, prior: np.ndarray | None,
@@ -242,7 +280,7 @@ def _solve_block(fast: FastIK, trans: np.ndarray, tgt: np.ndarray, x: np.ndarray
         x_new = x + step
         new = fast.forward(x_new, trans)
         ok = cost(x_new, new[0], xprev, xnext)
-        ok = np.isfinite(ok) & (ok <= cost(x, state[0], xprev, xnext))
+        ok = np.isfinite(ok) & (ok <= ACCEPT * cost(x, state[0], xprev, xnext))
         x = np.where(ok, x_new, x)
         if ok.all():
             state = new

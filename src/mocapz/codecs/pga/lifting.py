@@ -68,9 +68,25 @@ def plan(n: int) -> list[Level]:
 
 
 def _predict_rn(recon: np.ndarray, level: Level) -> np.ndarray:
-    pred = np.empty((level.positions.size, recon.shape[1]))
+    """Predictions of the level's odd samples: the stencils' weighted sums of strided views of the even
+    samples (every stencil's rows are consecutive; the taps are added in stencil order)."""
+    pos = level.positions
+    pred = np.empty((pos.size, recon.shape[1]))
+    if not pos.size:
+        return pred
+    s = int(pos[0])
+    even = recon[0 :: 2 * s]  # even[t] is sample 2st; odd row t is sample s + 2st
     for rows, nb, w, _ in level.groups:
-        pred[rows] = np.tensordot(recon[nb], w, axes=([1], [0]))
+        r0, r1 = int(rows[0]), int(rows[-1]) + 1
+        if r1 - r0 != rows.size:  # pragma: no cover - stencil rows are always consecutive
+            pred[rows] = np.tensordot(recon[nb], w, axes=([1], [0]))
+            continue
+        acc = None
+        for tap, wt in enumerate(w):
+            e0 = int(nb[0, tap]) // (2 * s)  # the tap's sample for the first row (an even multiple of s)
+            term = wt * even[e0 : e0 + (r1 - r0)]
+            acc = term if acc is None else acc + term
+        pred[r0:r1] = acc
     return pred
 
 

@@ -137,7 +137,7 @@ def search(p: Prepared, fixed: dict[str, Any], target: Target) -> tuple[dict[str
     for k in sorted({k_fine, min(dim, 2 * k_fine), dim}):
         start = PGASettings(k=k, lod_root=0, lod_effectors=0, lod_coords=0, pos_step=max(scale, 1e-6) * 2e-5,
                             coord_step=1e-3, rot_step=2e-4, basis_bits=12, mean_step=5e-5,
-                            iterations=6).replace(**fixed)
+                            iterations=PGASettings().iterations).replace(**fixed)
         best_sections, best_size, err = evaluate_settings(p, start)
         if target.met(err):
             met = True
@@ -203,7 +203,7 @@ def search(p: Prepared, fixed: dict[str, Any], target: Target) -> tuple[dict[str
     # decoding speed: fewer IK iterations when the target still holds (same size, faster decode)
     if "iterations" not in fixed:
         e_ref = evaluate_settings(p, best)[2].max_error
-        for it in (3, 1, 0):
+        for it in range(best.iterations - 1, -1, -1):
             cand = best.replace(iterations=it)
             sec, size, got = evaluate_settings(p, cand)
             if not target.met(got) or got.max_error > 1.1 * e_ref:  # faster, but not at the price of local failures

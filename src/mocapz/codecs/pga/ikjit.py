@@ -1,0 +1,93 @@
+"""Compiled (numba) kernels of the PGA decoder, used when numba is installed (``pip install mocapz[fast]``).
+
+The kernels (module :mod:`mocapz.codecs.pga.ikkernels`) do, a block of frames at a time (frames on the
+innermost axis of a few small work arrays, the vectorised one), what the NumPy
+code of :mod:`mocapz.codecs.pga.iksolve` does over frames: the same Levenberg-Marquardt iteration (cost,
+damping schedule, acceptance rule), the same closed-form rotations and right Jacobians, the same Jacobian
+(``(G_n J_r(w_n) B_n)`` columns crossed with ``p_e - o_n``), Gaussian elimination of the damped normal
+equations. The results agree with the NumPy path to float rounding (tests/test_pga_speed_equal.py).
+
+numba is imported lazily and only here; ``MOCAPZ_NO_NUMBA=1`` in the environment (or :func:`set_enabled`)
+selects the NumPy path, as on a machine without numba.
+"""
+
+from __future__ import annotations
+
+import os
+from typing import Any
+
+import numpy as np
+
+_KERNELS: dict[str, Any] | None = None
+_ENABLED = os.environ.get("MOCAPZ_NO_NUMBA", "") in ("", "0")
+
+
+def set_enabled(on: bool) -> bool:
+    """Use the compiled kernels (when numba is installed) or not; returns the previous setting (tests)."""
+    global _ENABLED
+    old, _ENABLED = _ENABLED, bool(on)
+    return old
+
+
+def kernels() -> dict[str, Any] | None:
+    """The compiled kernels by name, or None without numba (or when disabled)."""
+    global _KERNELS
+    if not _ENABLED:
+        return None
+    if _KERNELS is None:
+        try:
+            import numba  # noqa: F401
+        except ImportError:
+            _KERNELS = {}
+        else:
+            if not _room_to_compile():
+                return None  # the NumPy path this time; the kernels are compiled (or loaded) on a later call
+            _KERNELS = _compile()
+    return _KERNELS or None
+
+
+COMPILE_ROOM = 1 << 30  # bytes of address space numba / LLVM may need to compile or load the kernels
+
+
+def _room_to_compile() -> bool:
+    """False under an address-space cap leaving less than :data:`COMPILE_ROOM` (LLVM aborts the whole process
+    when it runs out of memory: a caller that caps memory, as the hostile-file tests do around every decode,
+    gets the NumPy path instead)."""
+    try:
+        import resource
+
+        soft, _ = resource.getrlimit(resource.RLIMIT_AS)
+        if soft == resource.RLIM_INFINITY:
+            return True
+        with open("/proc/self/status") as f:
+            vm = next(int(line.split()[1]) * 1024 for line in f if line.startswith("VmSize:"))
+        return soft - vm >= COMPILE_ROOM
+    except (ImportError, OSError, StopIteration, ValueError):  # pragma: no cover - not Linux
+        return True
+
+
+def _compile() -> dict[str, Any]:
+    from mocapz.codecs.pga import ikkernels as kk
+
+    out = {"solve_frames": kk.solve_frames, "pose": kk.pose, "solve_block": kk.solve_block, "forward": kk.forward,
+           "euler_channels": kk.euler_channels}
+    _warm(out)
+    return out
+
+
+def _warm(k: dict[str, Any]) -> None:
+    """Compile (or load from numba's cache) every kernel now, on a one-joint problem with the argument types of
+    the real calls: not later inside a caller's resource limits (tests run damaged files under an address-space
+    cap and a timer, and a kernel first compiled there would abort the process)."""
+    f8, i8 = np.float64, np.int64
+    eye = np.eye(3)[None].copy()
+    x = np.zeros((1, 1))
+    basis = np.zeros((3, 1))
+    k["solve_frames"](x, np.zeros((1, 3)), np.zeros((1, 1)), np.zeros((1, 1, 3)), False, basis,
+                      np.ascontiguousarray(basis.T), eye, np.zeros(1, i8), np.full(1, -1, i8), np.zeros(1, i8),
+                      eye.copy(), np.zeros(1, i8), np.zeros((1, 3)), np.zeros(1, i8), np.ones((1, 1), np.bool_),
+                      1.0, 0.0, False, 1)
+    k["pose"](x, np.ascontiguousarray(basis.T), eye, np.empty((1, 1, 3, 3), f8))
+    k["euler_channels"](x, np.ascontiguousarray(basis.T), eye, eye.copy(), np.zeros(1, i8),
+                        np.array([[2, 0, 1]], dtype=i8), np.ones(1), np.array([[0, 1, 2]], dtype=i8), eye.copy(),
+                        np.zeros(1, np.bool_), 1.0, np.zeros((1, 3)))

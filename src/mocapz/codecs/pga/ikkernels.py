@@ -1,0 +1,376 @@
+"""The compiled (numba) kernels of :mod:`mocapz.codecs.pga.ikjit` (imported only when numba is installed;
+module-level functions, so that numba's on-disk cache keeps them across processes)."""
+
+# ruff: noqa: ANN001, ANN202
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from mocapz.codecs.pga.ik import ACCEPT
+
+LANES = 32  # frames solved side by side (the innermost, vectorised axis of the compiled IK's arrays)
+
+jit = njit(cache=True, nogil=True, error_model="numpy")
+
+
+@jit
+def rodrigues1(w0: float, w1: float, w2: float, r: np.ndarray, jr: np.ndarray, q: int, with_jr: bool) -> None:
+    """``exp(w)`` into ``r[:, :, q]`` and ``J_r(w)`` into ``jr[:, :, q]`` (the closed form of
+    :func:`mocapz.codecs.pga.iksolve.rodrigues`)."""
+    th2 = w0 * w0 + w1 * w1 + w2 * w2
+    th = math.sqrt(th2)
+    if th < 1e-4:
+        a = 1.0 - th2 / 6.0
+        b = 0.5 - th2 / 24.0
+        cc = 1.0 / 6.0 - th2 / 120.0
+    else:
+        s = math.sin(th)
+        c = math.cos(th)
+        a = s / th
+        b = (1.0 - c) / (th * th)
+        cc = (th - s) / (th**3)
+    w = (w0, w1, w2)
+    for i in range(3):
+        for j in range(3):
+            k2 = w[i] * w[j]
+            if i == j:
+                k2 -= th2
+            r[i, j, q] = b * k2
+            if with_jr:
+                jr[i, j, q] = cc * k2
+    for i in range(3):
+        r[i, i, q] += 1.0
+        if with_jr:
+            jr[i, i, q] += 1.0
+    # K = [[0, -w2, w1], [w2, 0, -w0], [-w1, w0, 0]]; r += a K, jr -= b K
+    r[0, 1, q] -= a * w2
+    r[1, 0, q] += a * w2
+    r[0, 2, q] += a * w1
+    r[2, 0, q] -= a * w1
+    r[1, 2, q] -= a * w0
+    r[2, 1, q] += a * w0
+    if with_jr:
+        jr[0, 1, q] += b * w2
+        jr[1, 0, q] -= b * w2
+        jr[0, 2, q] -= b * w1
+        jr[2, 0, q] += b * w1
+        jr[1, 2, q] += b * w0
+        jr[2, 1, q] -= b * w0
+
+@jit
+def rodrigues(w0: np.ndarray, w1: np.ndarray, w2: np.ndarray, r: np.ndarray, jr: np.ndarray) -> None:
+    for q in range(w0.size):
+        rodrigues1(w0[q], w1[q], w2[q], r, jr, q, True)
+
+@jit
+def mul33(a: np.ndarray, b: np.ndarray, out: np.ndarray) -> None:
+    for i in range(3):
+        for j in range(3):
+            out[i, j] = a[i, 0] * b[0, j] + a[i, 1] * b[1, j] + a[i, 2] * b[2, j]
+
+
+@jit
+def forward(x, basis_t, mean, order, parent, mslot, rest, trans, carrier, end_off,  # noqa: ANN001
+            w, r, jr, local, g, o, pos):
+    """FK of a block of ``LANES`` frames (frames on the last axis of every array): effector positions
+    ``pos`` (e, 3, L), chain rotations ``g`` (N, 3, 3, L) and origins ``o`` (N, 3, L), right Jacobians
+    ``jr`` (m, 3, 3, L) of the moving joints, for coordinates ``x`` (k, L)."""
+    k, m3 = basis_t.shape
+    nq = x.shape[1]  # LANES (a run-time count: numba vectorises such loops, not fixed-count ones)
+    w[:] = 0.0
+    for c in range(k):
+        for i in range(m3):
+            bc = basis_t[c, i]
+            for q in range(nq):
+                w[i, q] += bc * x[c, q]
+    for n in range(m3 // 3):
+        rodrigues(w[3 * n], w[3 * n + 1], w[3 * n + 2], r, jr[n])
+        mn = mean[n]
+        for a in range(3):
+            for b in range(3):
+                for q in range(nq):
+                    local[n, a, b, q] = mn[a, 0] * r[0, b, q] + mn[a, 1] * r[1, b, q] + mn[a, 2] * r[2, b, q]
+    for i in range(order.size):
+        s = mslot[i]
+        p = parent[i]
+        loc = local[s] if s >= 0 else rest[i]
+        if p < 0:
+            g[i] = loc
+            o[i] = 0.0
+            continue
+        gp = g[p]
+        gi = g[i]
+        for a in range(3):
+            for b in range(3):
+                for q in range(nq):
+                    gi[a, b, q] = gp[a, 0, q] * loc[0, b, q] + gp[a, 1, q] * loc[1, b, q] \
+                        + gp[a, 2, q] * loc[2, b, q]
+        j = order[i]
+        for a in range(3):
+            for q in range(nq):
+                o[i, a, q] = o[p, a, q] + gp[a, 0, q] * trans[j, 0, q] + gp[a, 1, q] * trans[j, 1, q] \
+                    + gp[a, 2, q] * trans[j, 2, q]
+    for e in range(carrier.size):
+        c = carrier[e]
+        for a in range(3):
+            for q in range(nq):
+                pos[e, a, q] = o[c, a, q] + g[c, a, 0, q] * end_off[e, 0] + g[c, a, 1, q] * end_off[e, 1] \
+                    + g[c, a, 2, q] * end_off[e, 2]
+
+@jit
+def cost(x, pos, tgt, prior, lam_prior, use_prior, inv_l2, out):  # noqa: ANN001
+    """The LM cost of every lane into ``out`` (L,)."""
+    e = pos.shape[0]
+    nq = out.size
+    out[:] = 0.0
+    for a in range(e):
+        for b in range(3):
+            for q in range(nq):
+                d = pos[a, b, q] - tgt[3 * a + b, q]
+                out[q] += d * d
+    for q in range(nq):
+        out[q] *= inv_l2
+    if use_prior:
+        k = x.shape[0]
+        acc = np.zeros(nq)
+        for c in range(k):
+            for q in range(nq):
+                d = x[c, q] - prior[c, q]
+                acc[q] += d * d
+        for q in range(nq):
+            out[q] += lam_prior * acc[q]
+
+@jit
+def solve_block(x, tf, pf, tr, basis, basis_t, mean, order, parent, mslot, rest, carrier,  # noqa: ANN001
+                end_off, m_place, moves, inv_l2, lam_prior, use_prior, iterations, ws):
+    """LM on one block of ``LANES`` frames: ``x`` (k, L) in place, targets ``tf`` (3e, L), prior ``pf``
+    (k, L), translations ``tr`` (J, 3, L); ``ws`` the work arrays."""
+    (w, r, u, v, jac, am, bv, step, xn, mu, c_old, c_new, ok, cur, new) = ws
+    k, nq = x.shape
+    m = m_place.size
+    e = carrier.size
+    jr_c, loc_c, g_c, o_c, pos_c = cur
+    forward(x, basis_t, mean, order, parent, mslot, rest, tr, carrier, end_off, w, r, jr_c, loc_c, g_c,
+            o_c, pos_c)
+    mu[:] = 1e-3
+    cost(x, pos_c, tf, pf, lam_prior, use_prior, inv_l2, c_old)
+    for _ in range(iterations):
+        jr_c, loc_c, g_c, o_c, pos_c = cur
+        # Jacobian (3e, k, L): columns (G_n J_r(w_n) B_n) crossed with p_e - o_n
+        jac[:] = 0.0
+        for n in range(m):
+            i = m_place[n]
+            gi = g_c[i]
+            jn = jr_c[n]
+            for a in range(3):
+                for b in range(3):
+                    for q in range(nq):
+                        u[a, b, q] = gi[a, 0, q] * jn[0, b, q] + gi[a, 1, q] * jn[1, b, q] \
+                            + gi[a, 2, q] * jn[2, b, q]
+            for a in range(3):
+                for c in range(k):
+                    b0, b1, b2 = basis[3 * n, c], basis[3 * n + 1, c], basis[3 * n + 2, c]
+                    for q in range(nq):
+                        v[a, c, q] = u[a, 0, q] * b0 + u[a, 1, q] * b1 + u[a, 2, q] * b2
+            for ef in range(e):
+                if not moves[n, ef]:
+                    continue
+                for q in range(nq):
+                    r[0, 0, q] = pos_c[ef, 0, q] - o_c[i, 0, q]
+                    r[0, 1, q] = pos_c[ef, 1, q] - o_c[i, 1, q]
+                    r[0, 2, q] = pos_c[ef, 2, q] - o_c[i, 2, q]
+                d = r[0]
+                for c in range(k):
+                    for q in range(nq):
+                        jac[3 * ef, c, q] += v[1, c, q] * d[2, q] - v[2, c, q] * d[1, q]
+                        jac[3 * ef + 1, c, q] += v[2, c, q] * d[0, q] - v[0, c, q] * d[2, q]
+                        jac[3 * ef + 2, c, q] += v[0, c, q] * d[1, q] - v[1, c, q] * d[0, q]
+        # damped normal equations (sums over the rows in order)
+        am[:] = 0.0
+        bv[:] = 0.0
+        for rr in range(3 * e):
+            jr_row = jac[rr]
+            for q in range(nq):
+                step[0, q] = tf[rr, q] - pos_c[rr // 3, rr % 3, q]
+            for i in range(k):
+                for q in range(nq):
+                    bv[i, q] += jr_row[i, q] * step[0, q]
+                for j in range(i, k):
+                    for q in range(nq):
+                        am[i, j, q] += jr_row[i, q] * jr_row[j, q]
+        for i in range(k):
+            for q in range(nq):
+                bv[i, q] *= inv_l2
+            for j in range(i, k):
+                for q in range(nq):
+                    am[i, j, q] *= inv_l2
+                    am[j, i, q] = am[i, j, q]
+        for i in range(k):
+            for q in range(nq):
+                if use_prior:
+                    am[i, i, q] += lam_prior
+                    bv[i, q] += lam_prior * (pf[i, q] - x[i, q])
+                am[i, i, q] += mu[q] * max(am[i, i, q], 1e-12)
+        # Gaussian elimination without pivoting (symmetric positive definite)
+        for p in range(k - 1):
+            for i in range(p + 1, k):
+                for q in range(nq):
+                    u[0, 0, q] = am[i, p, q] / am[p, p, q]
+                for j in range(p + 1, k):
+                    for q in range(nq):
+                        am[i, j, q] -= u[0, 0, q] * am[p, j, q]
+                for q in range(nq):
+                    bv[i, q] -= u[0, 0, q] * bv[p, q]
+        for p in range(k - 1, -1, -1):
+            for q in range(nq):
+                u[0, 0, q] = 0.0
+            for j in range(p + 1, k):
+                for q in range(nq):
+                    u[0, 0, q] += am[p, j, q] * step[j, q]
+            for q in range(nq):
+                step[p, q] = (bv[p, q] - u[0, 0, q]) / am[p, p, q]
+        for i in range(k):
+            for q in range(nq):
+                sq = step[i, q]
+                xn[i, q] = x[i, q] + (sq if math.isfinite(sq) else 0.0)
+        jr_n, loc_n, g_n, o_n, pos_n = new
+        forward(xn, basis_t, mean, order, parent, mslot, rest, tr, carrier, end_off, w, r, jr_n, loc_n,
+                g_n, o_n, pos_n)
+        cost(xn, pos_n, tf, pf, lam_prior, use_prior, inv_l2, c_new)
+        n_ok = 0
+        for q in range(nq):
+            ok[q] = math.isfinite(c_new[q]) and c_new[q] <= ACCEPT * c_old[q]
+            n_ok += ok[q]
+            if ok[q]:
+                c_old[q] = c_new[q]
+                mu[q] = max(mu[q] / 3.0, 1e-7)
+            else:
+                mu[q] = min(mu[q] * 4.0, 1e6)
+        if n_ok == nq:
+            x[:] = xn
+            cur, new = new, cur
+        elif n_ok:
+            for q in range(nq):
+                if ok[q]:
+                    x[:, q] = xn[:, q]
+                    jr_c[..., q] = jr_n[..., q]
+                    g_c[..., q] = g_n[..., q]
+                    o_c[..., q] = o_n[..., q]
+                    pos_c[..., q] = pos_n[..., q]
+
+@jit
+def solve_frames(x, tgt, prior, trans, per_frame, basis, basis_t, mean, order, parent, mslot, rest, carrier,  # noqa: ANN001
+                 end_off, m_place, moves, inv_l2, lam_prior, use_prior, iterations):
+    """LM on every frame of ``x`` (F, k) in place, blocks of ``LANES`` frames (targets ``tgt`` (F, 3e),
+    prior (F, k), translations ``trans`` (F or 1, J, 3))."""
+    f, k = x.shape
+    m = m_place.size
+    nn = order.size
+    e = carrier.size
+    n_j = trans.shape[1]
+    ws = (np.empty((3 * m, LANES)), np.empty((3, 3, LANES)), np.empty((3, 3, LANES)), np.empty((3, k, LANES)),
+          np.empty((3 * e, k, LANES)), np.empty((k, k, LANES)), np.empty((k, LANES)), np.empty((k, LANES)),
+          np.empty((k, LANES)), np.empty(LANES), np.empty(LANES), np.empty(LANES), np.zeros(LANES, np.bool_),
+          (np.empty((m, 3, 3, LANES)), np.empty((m, 3, 3, LANES)), np.empty((nn, 3, 3, LANES)),
+           np.empty((nn, 3, LANES)), np.empty((e, 3, LANES))),
+          (np.empty((m, 3, 3, LANES)), np.empty((m, 3, 3, LANES)), np.empty((nn, 3, 3, LANES)),
+           np.empty((nn, 3, LANES)), np.empty((e, 3, LANES))))
+    rest_l = np.empty((nn, 3, 3, LANES))
+    for i in range(nn):
+        for a in range(3):
+            for b in range(3):
+                rest_l[i, a, b, :] = rest[i, a, b]
+    xb = np.empty((k, LANES))
+    tb = np.empty((3 * e, LANES))
+    pb = np.empty((k, LANES))
+    trb = np.empty((n_j, 3, LANES))
+    if not per_frame:
+        for j in range(n_j):
+            for a in range(3):
+                trb[j, a, :] = trans[0, j, a]
+    for f0 in range(0, f, LANES):
+        for q in range(LANES):
+            fi = min(f0 + q, f - 1)  # the last block repeats the last frame
+            xb[:, q] = x[fi]
+            tb[:, q] = tgt[fi]
+            pb[:, q] = prior[fi]
+            if per_frame:
+                trb[:, :, q] = trans[fi]
+        solve_block(xb, tb, pb, trb, basis, basis_t, mean, order, parent, mslot, rest_l, carrier, end_off,
+                    m_place, moves, inv_l2, lam_prior, use_prior, iterations, ws)
+        for q in range(min(LANES, f - f0)):
+            x[f0 + q] = xb[:, q]
+
+@jit
+def pose(x, basis_t, mean, out):  # noqa: ANN001
+    """Local rotations ``out`` (F, n, 3, 3) of the model's joints for coordinates ``x`` (F, k)."""
+    f, k = x.shape
+    n3 = basis_t.shape[1]
+    w = np.empty(n3)
+    r = np.empty((3, 3, 1))
+    for fi in range(f):
+        w[:] = 0.0
+        for c in range(k):
+            xc = x[fi, c]
+            for i in range(n3):
+                w[i] += basis_t[c, i] * xc
+        for n in range(n3 // 3):
+            rodrigues1(w[3 * n], w[3 * n + 1], w[3 * n + 2], r, r, 0, False)
+            mul33(mean[n], r[:, :, 0], out[fi, n])
+
+@jit
+def euler_channels(x, basis_t, mean, root_rot, src, ijk, sign, cols, axes, has_axis, scale, out):  # noqa: ANN001
+    """Euler channels of the decoded pose, straight into ``out`` (F, C): per rotating joint ``q`` its
+    rotation (``src[q]``: the root's ``root_rot`` (F, 3, 3) when -1, else model slot ``src[q]`` of
+    coordinates ``x`` (F, k)), turned into the joint's axis frame when ``has_axis[q]``, as the angles of
+    the intrinsic sequence ``ijk[q]`` (parity ``sign[q]``; :func:`mocapz.codecs.pga.channels.euler_angles`)
+    times ``scale``, written to columns ``cols[q]`` (-1: not a channel). Returns the number of non-finite
+    rotation entries (damaged streams)."""
+    f, k = x.shape
+    n3 = basis_t.shape[1]
+    w = np.empty(n3)
+    r = np.empty((3, 3, 1))
+    rm = np.empty((3, 3))
+    tmp = np.empty((3, 3))
+    ang = np.empty(3)
+    bad = 0
+    for fi in range(f):
+        w[:] = 0.0
+        for c in range(k):
+            xc = x[fi, c]
+            for i in range(n3):
+                w[i] += basis_t[c, i] * xc
+        for q in range(src.size):
+            sq = src[q]
+            if sq < 0:
+                rm[:, :] = root_rot[fi]
+            else:
+                rodrigues1(w[3 * sq], w[3 * sq + 1], w[3 * sq + 2], r, r, 0, False)
+                mul33(mean[sq], r[:, :, 0], rm)
+            for a in range(3):
+                for b in range(3):
+                    if not math.isfinite(rm[a, b]):
+                        bad += 1
+            if has_axis[q]:
+                ax = axes[q]
+                for a in range(3):
+                    for b in range(3):
+                        tmp[a, b] = ax[0, a] * rm[0, b] + ax[1, a] * rm[1, b] + ax[2, a] * rm[2, b]
+                mul33(tmp, ax, rm)
+            i, j, kk = ijk[q, 0], ijk[q, 1], ijk[q, 2]
+            sg = sign[q]
+            cb = math.hypot(rm[i, i], rm[i, j])
+            ang[1] = math.atan2(sg * rm[i, kk], cb)
+            if cb < 1e-9:
+                ang[0] = math.atan2(sg * rm[kk, j], rm[j, j])
+                ang[2] = 0.0
+            else:
+                ang[0] = math.atan2(-sg * rm[j, kk], rm[kk, kk])
+                ang[2] = math.atan2(-sg * rm[i, j], rm[i, i])
+            for t in range(3):
+                if cols[q, t] >= 0:
+                    out[fi, cols[q, t]] = ang[t] * scale if scale != 1.0 else ang[t]
+    return bad
