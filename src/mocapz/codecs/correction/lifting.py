@@ -104,19 +104,32 @@ def row_groups(frames: int, levels: int) -> list[int]:
     return [len(range(0, n, 1 << lv))] + [len(range(1 << lv_, n - 1, 2 << lv_)) for lv_ in range(lv - 1, -1, -1)]
 
 
+SPLIT_TWO, SPLIT_LEVELS = 0, 1  # c.res layouts: knots + all details, or knots + each level's details
+
+
+def _groups(frames: int, levels: int, split: int) -> list[int]:
+    rows = row_groups(frames, levels)
+    return rows if split == SPLIT_LEVELS else [rows[0], sum(rows[1:])]
+
+
 def pack(q: np.ndarray, frames: int, levels: int) -> bytes:
-    """The bytes of the integers of :func:`quantise` for a clip of ``frames`` frames: one range-coded stream
-    per part (the coarse knots, time differences with the first row absolute; then each level's details),
-    each after its uvarint byte length. The parts' magnitudes differ by orders: one stream's adaptive scales
-    would mix them."""
+    """The bytes of the integers of :func:`quantise` for a clip of ``frames`` frames: a layout byte, then range
+    coded streams each after its uvarint byte length: the coarse knots (time differences, the first row
+    absolute), then the details, all levels in one stream or one stream per level, whichever is smaller (the
+    levels' magnitudes differ by orders and one stream's adaptive scales mix them; each stream costs a scale
+    byte per column, which a short clip or block may not win back)."""
     if not q.shape[1]:
         return b""
-    out, pos = bytearray(), 0
-    for rows in row_groups(frames, levels):
-        part = encode_int_matrix(q[pos:pos + rows])
-        out += write_uvarint(len(part)) + part
-        pos += rows
-    return bytes(out)
+    best = b""
+    for split in (SPLIT_TWO, SPLIT_LEVELS):
+        out, pos = bytearray([split]), 0
+        for rows in _groups(frames, levels, split):
+            part = encode_int_matrix(q[pos:pos + rows])
+            out += write_uvarint(len(part)) + part
+            pos += rows
+        if not best or len(out) < len(best):
+            best = bytes(out)
+    return best
 
 
 def read(data: bytes, frames: int, cols: int, levels: int) -> np.ndarray:
@@ -124,8 +137,10 @@ def read(data: bytes, frames: int, cols: int, levels: int) -> np.ndarray:
     before anything is allocated)."""
     if cols == 0:
         return np.zeros((0, 0), dtype=np.int64)
-    parts, pos = [], 0
-    for rows in row_groups(frames, levels):
+    if not data or data[0] not in (SPLIT_TWO, SPLIT_LEVELS):
+        raise FormatError(None, "corrupted correction stream (layout)")
+    parts, pos = [], 1
+    for rows in _groups(frames, levels, data[0]):
         size, pos = read_uvarint(data, pos)
         if pos + size > len(data):
             raise FormatError(None, "corrupted correction stream (part length)")
