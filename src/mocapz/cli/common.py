@@ -39,20 +39,45 @@ class Say:
             click.echo(text, err=True)
 
     @contextlib.contextmanager
-    def progress(self, label: str, total: int | None = None) -> Iterator[Callable[[int], None]]:
-        """A rich progress display on a terminal (a spinner without ``total``); yields ``advance(n)``."""
+    def progress(self, label: str, total: int | None = None) -> Iterator[Progress]:
+        """A rich progress display on a terminal (a spinner without ``total``); yields a :class:`Progress`:
+        ``advance(n)``, and ``advance.stage(text)`` to say what is being done."""
         if self.quiet or not sys.stderr.isatty():
-            yield lambda n=1: None
+            yield Progress()
             return
         from rich.console import Console
-        from rich.progress import BarColumn, MofNCompleteColumn, Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
+        from rich.progress import BarColumn, MofNCompleteColumn, SpinnerColumn, TextColumn, TimeElapsedColumn
+        from rich.progress import Progress as Bar
 
         columns = [SpinnerColumn(), TextColumn("{task.description}"), TimeElapsedColumn()]
         if total is not None:
             columns[2:2] = [BarColumn(), MofNCompleteColumn()]
-        with Progress(*columns, console=Console(stderr=True), transient=True) as bar:
+        with Bar(*columns, console=Console(stderr=True), transient=True) as bar:
             task = bar.add_task(label, total=total)
-            yield lambda n=1: bar.advance(task, n)
+            yield _Progress(lambda n=1: bar.advance(task, n),
+                            lambda text: bar.update(task, description=f"{label}: {text}"))
+
+
+class Progress:
+    """What a command reports while it works: ``progress(n)`` units done, ``progress.stage(text)`` the stage
+    (nothing shown off a terminal or with ``-q``)."""
+
+    def __call__(self, n: int = 1) -> None:
+        pass
+
+    def stage(self, text: str) -> None:
+        pass
+
+
+class _Progress(Progress):
+    def __init__(self, advance: Callable[[int], None], stage: Callable[[str], None]) -> None:
+        self._advance, self._stage = advance, stage
+
+    def __call__(self, n: int = 1) -> None:
+        self._advance(n)
+
+    def stage(self, text: str) -> None:
+        self._stage(text)
 
 
 def each_input(items: list[Any], work: Callable[[Any], dict[str, Any]], many: bool) -> tuple[list[dict[str, Any]], int]:

@@ -143,6 +143,7 @@ def _one(path: Path, out: Path, codec: str, options: dict[str, Any], block: str 
         say.info(f"{name}: no target given, the {codec} codec meets its default target: {DEFAULT_TARGET}")
     t0 = time.perf_counter()
     with say.progress(f"{name}: {codec}", total=motion.n_frames) as advance:
+        advance.stage(f"encoding {motion.n_frames} frames")
         try:
             data = compress_checked(motion, info, options, block, advance)
         except OptionError as exc:  # the options were checked: this one is about the file (exit code 1)
@@ -150,6 +151,7 @@ def _one(path: Path, out: Path, codec: str, options: dict[str, Any], block: str 
         except MocapzError as exc:
             raise exc.at(name) from None
         elapsed = time.perf_counter() - t0
+        advance.stage("verifying every frame")
         rep = evaluate(motion, decompress(data))
     write_output(out, data, force)
     figs: dict[str, Any] = size_figures(motion, len(data), source_bytes)

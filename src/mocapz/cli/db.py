@@ -14,6 +14,7 @@ from typing import Any
 import click
 
 from mocapz.cli.codec_flags import CodecCommand, codec_flags, given
+from mocapz.cli.common import Say
 from mocapz.codecs import get_codec
 from mocapz.errors import OptionError
 
@@ -78,16 +79,21 @@ def compress_db(inputs: tuple[Path, ...], output: Path, force: bool, as_json: bo
     if output.exists() and not force:
         raise MocapzError(f"{output}: output exists (use -f to overwrite)")
     motions, failed = [], 0
-    for path, motion, reason in load_many(paths, jobs=jobs, scheduler=scheduler):
-        if motion is None:
-            failed += 1
-            click.echo(f"mocapz: error: {path}: {reason}", err=True)
-        else:
-            motions.append(motion)
+    say = Say(quiet=as_json)
+    with say.progress(f"compress-db: reading {len(paths)} clips", total=len(paths)) as advance:
+        for path, motion, reason in load_many(paths, jobs=jobs, scheduler=scheduler):
+            advance(1)
+            if motion is None:
+                failed += 1
+                click.echo(f"mocapz: error: {path}: {reason}", err=True)
+            else:
+                motions.append(motion)
     if not motions:
         raise MocapzError("no clip could be read")
     t0 = time.perf_counter()
-    data = compress_library(motions, **options)
+    frames = sum(m.n_frames for m in motions)
+    with say.progress(f"compress-db: {len(motions)} clips, {frames} frames: pattern databases and encoding"):
+        data = compress_library(motions, **options)
     elapsed = time.perf_counter() - t0
     atomic_write(output, lambda tmp: tmp.write_bytes(data), force=force)
     raw = sum(m.raw_bytes for m in motions)
