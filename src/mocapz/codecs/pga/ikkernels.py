@@ -73,6 +73,15 @@ def mul33(a: np.ndarray, b: np.ndarray, out: np.ndarray) -> None:
 
 
 @jit
+def mul33_lanes(x: np.ndarray, y: np.ndarray, out: np.ndarray, nq: int) -> None:
+    """``out[:, :, q] = x[:, :, q] @ y[:, :, q]`` for the first ``nq`` lanes (3 x 3 matrices)."""
+    for a in range(3):
+        for b in range(3):
+            for q in range(nq):
+                out[a, b, q] = x[a, 0, q] * y[0, b, q] + x[a, 1, q] * y[1, b, q] + x[a, 2, q] * y[2, b, q]
+
+
+@jit
 def forward(x, basis_t, mean, order, parent, mslot, rest, trans, carrier, end_off,  # noqa: ANN001
             w, r, jr, local, g, o, pos):
     """FK of a block of ``LANES`` frames (frames on the last axis of every array): effector positions
@@ -102,12 +111,7 @@ def forward(x, basis_t, mean, order, parent, mslot, rest, trans, carrier, end_of
             o[i] = 0.0
             continue
         gp = g[p]
-        gi = g[i]
-        for a in range(3):
-            for b in range(3):
-                for q in range(nq):
-                    gi[a, b, q] = gp[a, 0, q] * loc[0, b, q] + gp[a, 1, q] * loc[1, b, q] \
-                        + gp[a, 2, q] * loc[2, b, q]
+        mul33_lanes(gp, loc, g[i], nq)
         j = order[i]
         for a in range(3):
             for q in range(nq):
@@ -165,11 +169,7 @@ def solve_block(x, tf, pf, tr, basis, basis_t, mean, order, parent, mslot, rest,
             i = m_place[n]
             gi = g_c[i]
             jn = jr_c[n]
-            for a in range(3):
-                for b in range(3):
-                    for q in range(nq):
-                        u[a, b, q] = gi[a, 0, q] * jn[0, b, q] + gi[a, 1, q] * jn[1, b, q] \
-                            + gi[a, 2, q] * jn[2, b, q]
+            mul33_lanes(gi, jn, u, nq)
             for a in range(3):
                 for c in range(k):
                     b0, b1, b2 = basis[3 * n, c], basis[3 * n + 1, c], basis[3 * n + 2, c]
@@ -305,6 +305,16 @@ def solve_frames(x, tgt, prior, trans, per_frame, basis, basis_t, mean, order, p
             x[f0 + q] = xb[:, q]
 
 @jit
+def coords_to_vectors(xf: np.ndarray, basis_t: np.ndarray, w: np.ndarray) -> None:
+    """``w = xf @ basis_t``: a frame's rotation vectors (3n,) from its coordinates (k,), summed in order."""
+    w[:] = 0.0
+    for c in range(xf.size):
+        xc = xf[c]
+        for i in range(w.size):
+            w[i] += basis_t[c, i] * xc
+
+
+@jit
 def pose(x, basis_t, mean, out):  # noqa: ANN001
     """Local rotations ``out`` (F, n, 3, 3) of the model's joints for coordinates ``x`` (F, k)."""
     f, k = x.shape
@@ -312,11 +322,7 @@ def pose(x, basis_t, mean, out):  # noqa: ANN001
     w = np.empty(n3)
     r = np.empty((3, 3, 1))
     for fi in range(f):
-        w[:] = 0.0
-        for c in range(k):
-            xc = x[fi, c]
-            for i in range(n3):
-                w[i] += basis_t[c, i] * xc
+        coords_to_vectors(x[fi], basis_t, w)
         for n in range(n3 // 3):
             rodrigues1(w[3 * n], w[3 * n + 1], w[3 * n + 2], r, r, 0, False)
             mul33(mean[n], r[:, :, 0], out[fi, n])
@@ -338,11 +344,7 @@ def euler_channels(x, basis_t, mean, root_rot, src, ijk, sign, cols, axes, has_a
     ang = np.empty(3)
     bad = 0
     for fi in range(f):
-        w[:] = 0.0
-        for c in range(k):
-            xc = x[fi, c]
-            for i in range(n3):
-                w[i] += basis_t[c, i] * xc
+        coords_to_vectors(x[fi], basis_t, w)
         for q in range(src.size):
             sq = src[q]
             if sq < 0:
