@@ -22,14 +22,17 @@ from mocapz.model.motion import AnyMotion, BlockOf, Motion
 
 Sections = dict[str, bytes]
 
+MIN_DEFAULT_FRAMES = 128  # a block's own tables (predictors, scales) cost a few % below this
+
 _SPEC = re.compile(r"^\s*(\d+(?:\.\d*)?|\.\d+)\s*(s|f|frames?|seconds?)?\s*$", re.IGNORECASE)
 
 
 def block_frames(spec: int | float | str | None, frame_rate: float, default_seconds: float) -> int:
     """Frames per block for a ``--block`` value: frames (``240``, ``240f``), seconds (``4s``), ``0`` for the
-    whole clip in one block, None for the codec's default (``default_seconds``; 0: one block)."""
-    if spec is None:
-        return max(1, round(default_seconds * frame_rate)) if default_seconds > 0 else 0
+    whole clip in one block, None for the codec's default (``default_seconds``, at least
+    :data:`MIN_DEFAULT_FRAMES` frames; 0: one block)."""
+    if spec is None:  # the codec's default, never under MIN_DEFAULT_FRAMES (a 30-fps clip's 1 s is too short)
+        return max(MIN_DEFAULT_FRAMES, round(default_seconds * frame_rate)) if default_seconds > 0 else 0
     if isinstance(spec, bool):
         raise OptionError(f"--block: expected frames (240), seconds (4s) or 0, got {spec!r}")
     if isinstance(spec, int | float):
