@@ -132,7 +132,7 @@ class StreamDecoder:
     """Decode a stream as its bytes arrive: :meth:`feed` yields one motion per block completed."""
 
     def __init__(self, path: str | Path | None = None) -> None:
-        self.reader = framing.StreamReader()
+        self.reader = framing.StreamReader(keep=False)
         self.path = path
         self.header: ClipHeader | None = None
         self.info = None

@@ -67,9 +67,11 @@ class Stream:
 
 
 class StreamReader:
-    """Parse a stream as its bytes arrive: :meth:`feed` returns the blocks completed by the new bytes."""
+    """Parse a stream as its bytes arrive: :meth:`feed` returns the blocks completed by the new bytes.
+    ``keep=False``: the blocks are not kept in :attr:`stream` (a live decoder's memory stays bounded)."""
 
-    def __init__(self) -> None:
+    def __init__(self, keep: bool = True) -> None:
+        self.keep = keep
         self.buffer = bytearray()
         self.pos = 0  # bytes of ``buffer`` already parsed
         self.stream: Stream | None = None
@@ -138,7 +140,8 @@ class StreamReader:
             self.stream.complete = True
             return pos + 4, None
         self.stream.block_frames.append(frames)
-        self.stream.blocks.append(sections)
+        if self.keep:
+            self.stream.blocks.append(sections)
         return pos + 4, (frames, sections)
 
     def _header(self, buf: memoryview) -> tuple[int, None] | None:
