@@ -110,6 +110,10 @@ def worker(codec: str, minutes: float, offline_frames: int) -> dict[str, Any]:
             "offline_frames": n, "offline_bytes": offline, "stream_bytes_same_frames": short}
 
 
+def _mb(v: float | None) -> str:
+    return "n/a" if v is None else f"{v:.0f}"
+
+
 def render(rows: list[dict[str, Any]], command: str) -> str:
     lines = ["# Streaming: latency and memory on an hour-long stream", "",
              f"Written by `{command}` ({time.strftime('%Y-%m-%d')}, a shared 2-core machine, one thread per "
@@ -123,8 +127,8 @@ def render(rows: list[dict[str, Any]], command: str) -> str:
         lines.append(
             f"| {r['codec']} | {r['minutes']:g} | {r['frames']:,} | {r['block_s']:g} s | {r['ratio']:.2f} | "
             f"{r['encode_fps']:,.0f} | {r['latency_median_ms']:.1f} / {r['latency_max_ms']:.1f} | "
-            f"{r['rss_first_minute_mb']:.0f} / {r['rss_end_mb']:.0f} | "
-            f"{r['rss_decoded_first_minute_mb']:.0f} / {r['rss_decoded_mb']:.0f} | "
+            f"{_mb(r['rss_first_minute_mb'])} / {_mb(r['rss_end_mb'])} | "
+            f"{_mb(r['rss_decoded_first_minute_mb'])} / {_mb(r['rss_decoded_mb'])} | "
             f"{r['decode_fps']:,.0f} | "
             f"{r['decode_block_ms_median']:.2f} | "
             f"{100 * (r['stream_bytes_same_frames'] / r['offline_bytes'] - 1):+.1f} % |")

@@ -135,3 +135,21 @@ def test_cli_compresses_a_pipe_block_by_block_and_streams_bvh_out(tmp_path) -> N
     assert res.returncode == 0, res.stderr
     (tmp_path / "o.bvh").write_bytes(res.stdout)
     assert np.array_equal(mocapz.load(tmp_path / "o.bvh").values, m.values[100:300])
+
+
+def test_stream_benchmark_script_measures_what_it_reports() -> None:
+    """scripts/stream.py's worker on 6 s of stream: every figure of its table present and sane."""
+    import importlib.util
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parents[1] / "scripts" / "stream.py"
+    spec = importlib.util.spec_from_file_location("stream_script", path)
+    assert spec is not None and spec.loader is not None
+    script = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(script)
+    row = script.worker("lossless", 0.1, 360)
+    assert row["frames"] == 720 and row["bytes"] > 0 and row["ratio"] > 2
+    assert 0 < row["latency_median_ms"] <= row["latency_max_ms"]
+    assert row["encode_fps"] > 0 and row["decode_fps"] > 0
+    assert row["stream_bytes_same_frames"] > 0 and row["offline_bytes"] > 0
+    assert "| lossless |" in script.render([row], "cmd")  # under a minute: the first-minute memory is n/a
