@@ -31,7 +31,7 @@ def _clip(tmp_path: Path, frames: int = 500) -> Path:
     return path
 
 
-@pytest.mark.parametrize(("codec", "default_blocks"), [("lossless", 4), ("quant", 1)])
+@pytest.mark.parametrize(("codec", "default_blocks"), [("lossless", 3), ("quant", 1)])  # lossless: 128-frame blocks
 def test_seek_worker(tmp_path: Path, codec: str, default_blocks: int) -> None:
     out = speed.worker({"path": str(_clip(tmp_path)), "codec": codec, "mode": "seek", "repeat": 1})
     assert out["frames"] == 500 and out["frame_rate"] == pytest.approx(120.0)
@@ -52,7 +52,7 @@ def test_seek_worker(tmp_path: Path, codec: str, default_blocks: int) -> None:
     assert cost is not None and math.isfinite(cost) and abs(cost) < 50
     assert out["4s"]["bytes"] == out["one"]["bytes"] and speed.block_cost(out, "4s") == 0.0  # both one block
     cells = speed.seek_cells({"seek": out}, None)
-    assert len(cells) == 7 and cells[0] == ("1 s (4 blocks)" if default_blocks == 4 else "one block")
+    assert len(cells) == 7 and cells[0] == (f"{128 / 120:g} s (3 blocks)" if default_blocks == 3 else "one block")
     assert cells[-1] == "+0.0 % (one block)"
 
 
