@@ -19,7 +19,7 @@ from mocapz.format import blocks
 from mocapz.format.container import Container
 from mocapz.format.extras import PREFIX, attach, decode_extras, sections_of, split_sections
 from mocapz.format.layout import decode_header, encode_layout
-from mocapz.format.stream import STREAM_VERSION, read_stream
+from mocapz.format.stream import Stream, is_stream, read_stream
 from mocapz.model.header import ClipHeader
 from mocapz.model.motion import AnyMotion, MarkerMotion, Motion
 
@@ -69,15 +69,10 @@ def compress_checked(motion: AnyMotion, info: CodecInfo, checked: dict[str, Any]
 def read_container(data: bytes, path: str | Path | None = None) -> tuple[Container, ClipHeader]:
     """Parse container bytes and their layout header (errors name ``path``). A stream (format version 3)
     comes back as a container of its blocks' sections (``"{block}:{name}"``) and a header of all its frames."""
-    if len(data) > 4 and data[4] == STREAM_VERSION:
-        try:
-            stream = read_stream(data)
-            header = decode_header(stream.layout)
-        except FormatError as exc:
-            raise FormatError(path, exc.problem) from None
+    if is_stream(data):
+        stream, header = read_stream_header(data, path)
         sections = {f"{i}:{k}": v for i, b in enumerate(stream.blocks) for k, v in b.items()}
-        box = Container(stream.codec, stream.codec_version, stream.layout, {**sections, **stream.sections})
-        return box, replace(header, frames=stream.frames)
+        return Container(stream.codec, stream.codec_version, stream.layout, {**sections, **stream.sections}), header
     box = Container.from_bytes(data, path)
     try:
         header = decode_header(box.layout)
@@ -90,7 +85,7 @@ def decompress(data: bytes, path: str | Path | None = None, *,
                frames: slice | range | tuple[int, int] | None = None) -> AnyMotion:
     """Decode the bytes of a ``.mcz`` file back into a motion, or only ``frames`` of it (a slice: the values of
     those frames in a full decode; a file coded in blocks decodes only the blocks they lie in)."""
-    if len(data) > 4 and data[4] == STREAM_VERSION:
+    if is_stream(data):
         return decode_stream(data, path, frames)
     box, header = read_container(data, path)
     start, stop = blocking.frame_range(frames, header.frames)
@@ -148,14 +143,19 @@ def _with_extras(motion: AnyMotion, sections: dict[str, bytes], header: ClipHead
     return motion
 
 
+def read_stream_header(data: bytes, path: str | Path | None = None) -> tuple[Stream, ClipHeader]:
+    """A complete stream and its layout header, with the frames of all its blocks (errors name ``path``)."""
+    try:
+        stream = read_stream(data)
+        return stream, replace(decode_header(stream.layout), frames=stream.frames)
+    except FormatError as exc:
+        raise FormatError(path, exc.problem) from None
+
+
 def decode_stream(data: bytes, path: str | Path | None = None,
                   frames: slice | range | tuple[int, int] | None = None) -> AnyMotion:
     """A complete stream's motion (or ``frames`` of it, decoding only the blocks they lie in)."""
-    try:
-        stream = read_stream(data)
-        header = replace(decode_header(stream.layout), frames=stream.frames)
-    except FormatError as exc:
-        raise FormatError(path, exc.problem) from None
+    stream, header = read_stream_header(data, path)
     info = codec_of(stream.codec, stream.codec_version, path)
     if stream.sections:
         raise FormatError(path, f"corrupted streamed .mcz (unknown clip-wide sections {sorted(stream.sections)})")
@@ -173,9 +173,9 @@ def iter_decompress(data: bytes, path: str | Path | None = None, *,
     """The frames of a ``.mcz`` (or ``frames`` of it) block by block, as each is decoded: ``(the number of frames
     selected in all, the next block's motion)``; a clip in one block comes in one piece. C3D extras are not
     attached (use :func:`decompress`)."""
-    if len(data) > 4 and data[4] == STREAM_VERSION:
-        box, header = read_container(data, path)
-        stream = read_stream(data)
+    if is_stream(data):
+        stream, header = read_stream_header(data, path)
+        name, version = stream.codec, stream.codec_version
         parts, lengths = stream.blocks, stream.block_frames
     else:
         box, header = read_container(data, path)
@@ -183,14 +183,15 @@ def iter_decompress(data: bytes, path: str | Path | None = None, *,
             start, stop = blocking.frame_range(frames, header.frames)
             yield stop - start, decompress(data, path, frames=frames)
             return
+        name, version = box.codec, box.codec_version
         index, parts, _ = blocks.unpack(split_sections(box.sections)[0], header.frames)
         lengths = [b - a for a, b in (index.bounds(i) for i in range(index.count))]
-    info = codec_of(box.codec, box.codec_version, path)
+    info = codec_of(name, version, path)
     start, stop = blocking.frame_range(frames, header.frames)
     ends = np.cumsum(lengths).tolist()
     for part, a, b in zip(parts, [0, *ends[:-1]], ends, strict=True):
         if b <= start or a >= stop:
             continue
-        with decoder_errors(box.codec, path):
+        with decoder_errors(name, path):
             piece = blocking.decode_spans(info.decode, [part], [(a, b)], header, start, stop)
         yield stop - start, piece

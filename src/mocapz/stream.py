@@ -61,6 +61,9 @@ class StreamEncoder:
         self.history = max(int(round(HISTORY_S * template.frame_rate)), 2)
         self.pending: list[np.ndarray] = []
         self.past = template.values[:0]  # the last frames before the pending ones (context)
+        empty = ErrorMetric(self.template)  # their positions (frames, points, 3) and present samples
+        self.past_pos = empty.positions
+        self.past_ok = np.ones(empty.positions.shape[:2], bool)
         self.frames = 0
         self.energy = 0.0  # the original's acceleration energy so far
         self.spent = 0.0  # acceleration energy the corrections added so far
@@ -111,17 +114,21 @@ class StreamEncoder:
         field = "channels" if isinstance(self.template, Motion) else "positions"
         window = replace(self.template, **{field: np.concatenate([past, rows])})
         a, b = len(past), len(past) + len(rows)
-        metric = ErrorMetric(window)
+        # positions of the new rows only (forward kinematics is per frame); the history's are kept
+        metric = ErrorMetric(replace(self.template, **{field: rows}))
         valid = np.ones(metric.positions.shape[:2], bool) if metric.valid is None else metric.valid
+        pos = np.concatenate([self.past_pos[-a:] if a else self.past_pos[:0], metric.positions])
+        ok = np.concatenate([self.past_ok[-a:] if a else self.past_ok[:0], valid])
         lo = max(a - 2, 0)
-        self.energy += float(acceleration_energy(metric.positions[lo:b], valid[lo:b])[0].sum())
+        self.energy += float(acceleration_energy(pos[lo:b], ok[lo:b])[0].sum())
         # the clip so far, as the block's correction sees it: energy up to the block's end, the allowance spent
-        cache = {"positions": (metric.positions, valid), "energy": (self.energy, b), "jitter_spent": self.spent}
+        cache = {"positions": (pos, ok), "energy": (self.energy, b), "jitter_spent": self.spent}
         piece = window.slice(a, b)
         piece = replace(piece, metadata={**piece.metadata, "block_of": BlockOf(window, a, b, cache)})
         sections = self.info.encode(piece, **self.options)
         self.spent = float(cache.get("jitter_spent", self.spent))
         self.past = np.concatenate([past, rows])[-self.history:]
+        self.past_pos, self.past_ok = pos[-self.history:], ok[-self.history:]
         self.frames += len(rows)
         record = framing.block_bytes(len(rows), sections)
         self.crc = zlib.crc32(record, self.crc)

@@ -30,6 +30,11 @@ BLOCK, END = 1, 0
 MAX_BLOCK_FRAMES = 1 << 24
 
 
+def is_stream(data: bytes) -> bool:
+    """True when ``data`` claims to be a streamed ``.mcz`` (format version 3)."""
+    return len(data) > 4 and data[4] == STREAM_VERSION
+
+
 def header_bytes(codec: str, codec_version: int, layout: bytes) -> bytes:
     """The stream's first bytes."""
     name = codec.encode("ascii")
