@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import time
 from pathlib import Path
 
 import numpy as np
@@ -93,14 +92,6 @@ def test_non_cmu_skeleton_units() -> None:
     assert sk.unit_cm == 100.0 and "metres" in sk.unit_note
     height = np.ptp(_fk(m)[:, :, 1], axis=1).max()
     assert 1.5 < height < 2.0
-
-
-def test_read_speed() -> None:
-    amc = data_path("cmu/asfamc/01_01.amc")
-    read_asfamc(amc)
-    t0 = time.perf_counter()
-    read_asfamc(amc)
-    assert time.perf_counter() - t0 < 1.0
 
 
 def test_frame_rate_keyword() -> None:

@@ -199,13 +199,22 @@ def test_damaged_sections(codec: str, kind: str) -> None:
     assert not bad, _report(bad)
 
 
-def _c3d_cases() -> Iterator[tuple[str, bytes]]:
+#: exact extras; analogs and tracks rounded to a precision (their stepped word matrices); extras in 3 blocks
+EXTRAS_CASES = ({}, {"analog_precision": 0.01, "track_precision": "angles=0.01,forces=0.1,moments=10,powers=0.01"},
+                {"block": 20})
+
+
+def _c3d_cases(options: dict[str, Any]) -> Iterator[tuple[str, bytes]]:
     """The ``c3d.*`` sections (parameters, residual words, model-output tracks, analogs, missing samples) of
-    20 frames of the Plug-in-Gait trial, each missing, then damaged in every way of :func:`_damage`."""
-    clip = mocapz.load(data_path("other/markers/btkdata/c3d_samples/PiG_Motion-FlatFoot-Full.c3d")).slice(0, 20)
-    box = Container.from_bytes(mocapz.compress(clip, codec="lossless"))
+    20 frames (60 in blocks) of the Plug-in-Gait trial, each missing, then damaged in every way of
+    :func:`_damage`."""
+    pig = mocapz.load(data_path("other/markers/btkdata/c3d_samples/PiG_Motion-FlatFoot-Full.c3d"))
+    clip = pig.slice(0, 60 if "block" in options else 20)
+    box = Container.from_bytes(mocapz.compress(clip, codec="lossless", **options))
     mine = [k for k in box.sections if k.startswith("c3d.")]
-    assert len(mine) == 5
+    assert len(mine) == (14 if "block" in options else 5)
+    if "analog_precision" in options:  # the stepped form is what is damaged (20 frames: one block)
+        assert box.sections["c3d.trk"][0] == box.sections["c3d.ana"][0] == 0x40
     payloads = list(box.sections.values())
     for key in mine:
         rng = np.random.default_rng(zlib.crc32(f"c3d/{key}".encode()))
@@ -216,15 +225,16 @@ def _c3d_cases() -> Iterator[tuple[str, bytes]]:
                                              dict(box.sections, **{key: bad})).to_bytes()
 
 
-def test_damaged_c3d_sections() -> None:
+@pytest.mark.parametrize("options", EXTRAS_CASES, ids=("exact", "precision", "blocks"))
+def test_damaged_c3d_sections(options: dict[str, Any]) -> None:
     """Damaged C3D extras give a FormatError or extras that describe the decoded clip and write a file."""
     from mocapz.io.c3d_raw import c3d_bytes
 
-    count, bad = _referee(_c3d_cases())
+    count, bad = _referee(_c3d_cases(options))
     assert count > 100
     assert not bad, _report(bad)
     with _limits():
-        for name, data in _c3d_cases():
+        for name, data in _c3d_cases(options):
             try:
                 motion = mocapz.decompress(data)
             except FormatError:

@@ -18,6 +18,7 @@ from mocapz.errors import FormatError, OptionError
 from mocapz.format import blocks
 from mocapz.format.container import Container
 from mocapz.format.extras import PREFIX, attach, decode_extras, sections_of, split_sections
+from mocapz.format.extras_precision import ExtrasPrecision
 from mocapz.format.layout import decode_header, encode_layout
 from mocapz.format.stream import Stream, is_stream, read_stream
 from mocapz.model.header import ClipHeader
@@ -25,7 +26,8 @@ from mocapz.model.motion import AnyMotion, MarkerMotion, Motion
 
 
 def compress(motion: AnyMotion | str | PathLike[str], codec: str = "lossless", *,
-             block: int | float | str | None = None, **options: Any) -> bytes:
+             block: int | float | str | None = None, analog_precision: Any = None, track_precision: Any = None,
+             **options: Any) -> bytes:
     """Compress a motion into the bytes of a ``.mcz`` file.
 
     Args:
@@ -34,6 +36,9 @@ def compress(motion: AnyMotion | str | PathLike[str], codec: str = "lossless", *
         block: the clip is coded as independent blocks of this length, so that a frame range decodes only
             the blocks it needs (:func:`decompress` ``frames=``): frames (``240``), seconds (``"4s"``) or 0
             for one block; None: the codec's default (``CodecInfo.block_seconds``).
+        analog_precision, track_precision: a C3D file's analog channels and model-output tracks come back
+            bit for bit (None), or within this error in their own units: a number for all of them, or per
+            name (``{"Fz1": 0.5}``, ``"angles=0.01,forces=0.1"``; :mod:`mocapz.format.extras_precision`).
         **options: that codec's options (``docs/options.md``; ``mocapz compress --codec NAME --help``).
 
     Raises:
@@ -42,19 +47,22 @@ def compress(motion: AnyMotion | str | PathLike[str], codec: str = "lossless", *
     """
     info = get_codec(codec)
     checked = info.validate(options)
+    precision = ExtrasPrecision.of(analog_precision, track_precision)
+    blocking.block_frames(block, 1.0, 0.0)  # checked before anything is read or encoded
     if not isinstance(motion, Motion | MarkerMotion):
         from mocapz.io import load
 
         motion = load(Path(motion))
-    blocking.block_frames(block, 1.0, 0.0)  # checked before anything is encoded
-    return compress_checked(motion, info, checked, block)
+    return compress_checked(motion, info, checked, block, precision=precision)
 
 
 def compress_checked(motion: AnyMotion, info: CodecInfo, checked: dict[str, Any],
                      block: int | float | str | None = None,
-                     progress: Callable[[int], None] | None = None) -> bytes:
-    """:func:`compress` with options already checked by ``info.validate`` (the CLI and the batch workers check
-    them once, before any input is read, and pass them on); ``progress(frames)`` after each block."""
+                     progress: Callable[[int], None] | None = None,
+                     precision: ExtrasPrecision | None = None) -> bytes:
+    """:func:`compress` with options already checked by ``info.validate`` and ``precision`` by
+    :meth:`ExtrasPrecision.of` (the CLI and the batch workers check them once, before any input is read, and
+    pass them on); ``progress(frames)`` after each block."""
     if motion.kind not in info.kinds:
         raise OptionError(f"the {info.name} codec does not take {motion.kind} data "
                           f"(it takes {' and '.join(info.kinds)} data)")
@@ -62,7 +70,8 @@ def compress_checked(motion: AnyMotion, info: CodecInfo, checked: dict[str, Any]
     sections = blocking.encode(info.encode, motion, checked, per_block, progress)
     if any(key.startswith(PREFIX) for key in sections):
         raise FormatError(None, f"the {info.name} codec wrote a section named {PREFIX}*, which is reserved")
-    sections = {**sections, **sections_of(motion)}  # the C3D extras, coded losslessly whatever the codec
+    # the C3D extras, whatever the codec, in the codec's blocks
+    sections = {**sections, **sections_of(motion, precision, per_block)}
     return Container(info.name, info.version, encode_layout(motion), sections).to_bytes()
 
 
@@ -134,12 +143,13 @@ def decoder_errors(codec: str, path: str | Path | None) -> Iterator[None]:
 
 def _with_extras(motion: AnyMotion, sections: dict[str, bytes], header: ClipHeader, start: int,
                  stop: int) -> AnyMotion:
-    """Frames ``[start, stop)`` of the clip with its C3D extras (coded for the whole clip) cut alike."""
+    """Frames ``[start, stop)`` of the clip with its C3D extras of those frames (only the blocks holding them
+    decoded)."""
     if not sections:
         return motion
     if not isinstance(motion, MarkerMotion):
         raise FormatError(None, "corrupted .mcz file (C3D sections in a skeletal clip)")
-    motion.metadata["c3d"] = decode_extras(sections, header.frames, len(header.labels)).slice(start, stop)
+    motion.metadata["c3d"] = decode_extras(sections, header.frames, len(header.labels), start, stop)
     return motion
 
 

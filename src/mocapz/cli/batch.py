@@ -19,6 +19,7 @@ from mocapz.cli.common import Say
 from mocapz.cli.outputs import check_outputs
 from mocapz.codecs import get_codec
 from mocapz.errors import MocapzError
+from mocapz.format.extras_precision import ExtrasPrecision
 from mocapz.parallel.discover import BATCH_EXTENSIONS, discover, plan
 from mocapz.parallel.folder import compress_folder
 from mocapz.parallel.report import BatchReport
@@ -57,7 +58,7 @@ def summary_line(report: BatchReport, input_dir: Path, output_dir: Path) -> str:
 
 def run_batch_compress(input_dir: Path, output_dir: Path, codec: str, options: dict[str, Any], jobs: int | None,
                        scheduler: str | None, force: bool, as_json: bool, say: Say | None = None,
-                       block: str | None = None) -> int:
+                       block: str | None = None, precision: ExtrasPrecision | None = None) -> int:
     """Compress every clip under ``input_dir`` into ``output_dir``; return the exit code (0, or 1 if any failed).
 
     Args:
@@ -70,7 +71,7 @@ def run_batch_compress(input_dir: Path, output_dir: Path, codec: str, options: d
         force: overwrite existing outputs (otherwise those clips fail with "output exists").
         as_json: print one JSON object (totals, failures, per-clip results) instead of the summary line.
         say: messages (``-q`` / ``-v``).
-        block: the block length (``--block``).
+        block: the block length (``--block``); precision: ``--analog-precision`` / ``--track-precision``.
 
     Errors about the whole batch (no such folder, no motion file in it, unknown codec, unreachable
     scheduler) are raised as :class:`~mocapz.errors.MocapzError` for the CLI's usual one-line report.
@@ -80,7 +81,8 @@ def run_batch_compress(input_dir: Path, output_dir: Path, codec: str, options: d
         raise MocapzError(f"{input_dir}: no motion files ({', '.join(BATCH_EXTENSIONS)}) in this folder")
     check_outputs([Path(j.output) for j in plan(input_dir, output_dir)], force, folders_made=True)
     report = compress_folder(input_dir, output_dir, codec, _absolute_paths(codec, options), jobs=jobs,
-                             scheduler=scheduler, force=force, progress=not (as_json or say.quiet), block=block)
+                             scheduler=scheduler, force=force, progress=not (as_json or say.quiet), block=block,
+                             precision=precision)
     root = Path(input_dir)
     for r in report.failed:
         click.echo(f"mocapz: error: {root / r.name}: {r.error}", err=True)

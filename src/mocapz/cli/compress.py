@@ -36,6 +36,7 @@ from mocapz.errors import MocapzError, OptionError
 from mocapz.files import STDIN_NAME, compressed_name, load_bytes, sniff
 from mocapz.format.container import Container
 from mocapz.format.extras import PREFIX as EXTRAS_PREFIX
+from mocapz.format.extras_precision import ExtrasPrecision
 from mocapz.io import MOTION_EXTENSIONS
 
 FORMATS = tuple(e.lstrip(".") for e in MOTION_EXTENSIONS)
@@ -59,19 +60,27 @@ FORMATS = tuple(e.lstrip(".") for e in MOTION_EXTENSIONS)
 @click.option("--block", default=None, metavar="LENGTH",
               help="code the clip in independent blocks of LENGTH (4s, 240 frames; 0: one block), so that "
                    "decompress --frames decodes only the blocks it needs (default: the codec's)")
+@click.option("--analog-precision", "analog_precision", multiple=True, metavar="[LABEL=]ERROR",
+              help="C3D analog channels within ERROR in their own units (all, or the channel LABEL; "
+                   "repeatable); default: bit for bit")
+@click.option("--track-precision", "track_precision", multiple=True, metavar="[NAME=]ERROR",
+              help="C3D model outputs (angles, forces, moments, powers) within ERROR in their own units: all, "
+                   "a kind (angles=0.01) or a label; repeatable; default: bit for bit")
 @range_flags
 @unit_flag
 @message_flags
 @codec_flags()
 def compress(inputs: tuple[Path, ...], output: Path | None, to_stdout: bool, codec: str, fmt_name: str | None,
              asf: Path | None, force: bool, as_json: bool, jobs: int | None, scheduler: str | None,
-             block: str | None, frames: str | None, start: float | None, end: float | None, unit: str | None,
+             block: str | None, analog_precision: tuple[str, ...], track_precision: tuple[str, ...],
+             frames: str | None, start: float | None, end: float | None, unit: str | None,
              quiet: bool, verbose: bool, **params: Any) -> None:
     """Compress motion files (.bvh, .amc, .c3d, .trc) or folders of them into .mcz files."""
     from mocapz.blocking import block_frames
 
     info, options = check_codec_options(codec, params)
     block_frames(block, 1.0, 0.0)  # a bad --block fails before any input is read
+    precision = ExtrasPrecision.of(analog_precision or None, track_precision or None)
     say = Say(quiet, verbose)
     if to_stdout:
         if output is not None and str(output) != "-":
@@ -96,10 +105,12 @@ def compress(inputs: tuple[Path, ...], output: Path | None, to_stdout: bool, cod
         from mocapz.cli.batch import run_batch_compress
 
         out_dir = output / path.name if (output is not None and len(inputs) > 1) else (output or path)
-        failed += run_batch_compress(path, out_dir, info.name, options, jobs, scheduler, force, as_json, say, block)
+        failed += run_batch_compress(path, out_dir, info.name, options, jobs, scheduler, force, as_json, say, block,
+                                     precision)
     files = [p for p in inputs if p not in folders]
     results, bad = each_input(files, lambda p: _one(p, _output_for(p, output, many), info.name, options, block,
-                                                    asf, fmt_name, (frames, start, end), unit, force, say), many)
+                                                    asf, fmt_name, (frames, start, end), unit, force, say,
+                                                    precision), many)
     finish(results, many, as_json, failed + bad)
 
 
@@ -115,11 +126,12 @@ def _output_for(path: Path, output: Path | None, many: bool) -> Path:
 
 def _one(path: Path, out: Path, codec: str, options: dict[str, Any], block: str | None, asf: Path | None,
          fmt_name: str | None, rng: tuple[str | None, float | None, float | None], unit: str | None, force: bool,
-         say: Say) -> dict[str, Any]:
+         say: Say, precision: ExtrasPrecision | None = None) -> dict[str, Any]:
     """Compress one input to ``out``; return the figures printed (and given with --json)."""
     from mocapz.api import compress_checked, decompress
     from mocapz.codecs import get_codec
     from mocapz.io import load
+    from mocapz.metrics.c3d_extras import describe, extras_errors
     from mocapz.metrics.figures import evaluate, size_figures
 
     name = STDIN_NAME if str(path) == "-" else str(path)
@@ -145,14 +157,16 @@ def _one(path: Path, out: Path, codec: str, options: dict[str, Any], block: str 
     with say.progress(f"{name}: {codec}", total=motion.n_frames) as advance:
         advance.stage(f"encoding {motion.n_frames} frames")
         try:
-            data = compress_checked(motion, info, options, block, advance)
+            data = compress_checked(motion, info, options, block, advance, precision)
         except OptionError as exc:  # the options were checked: this one is about the file (exit code 1)
             raise MocapzError(exc.message, path=exc.path or name) from None
         except MocapzError as exc:
             raise exc.at(name) from None
         elapsed = time.perf_counter() - t0
         advance.stage("verifying every frame")
-        rep = evaluate(motion, decompress(data))
+        decoded = decompress(data)
+        rep = evaluate(motion, decoded)
+        rest = extras_errors(motion, decoded)
     write_output(out, data, force)
     figs: dict[str, Any] = size_figures(motion, len(data), source_bytes)
     figs.update(input=name, output=str(out), codec=codec, frames=motion.n_frames,
@@ -161,8 +175,9 @@ def _one(path: Path, out: Path, codec: str, options: dict[str, Any], block: str 
                 arms_cm=rep.arms_cm)
     extras = sum(len(v) for k, v in Container.from_bytes(data).sections.items() if k.startswith(EXTRAS_PREFIX))
     figs["c3d_extras_bytes"] = extras
-    held = (f" ({extras} of them the rest of the C3D: parameters, residuals, analogs, model outputs; lossless)"
-            if extras else "")
+    if rest is not None:
+        figs["c3d_extras"] = rest
+    held = f" ({extras} of them the rest of the C3D: {describe(rest)})" if extras and rest else ""
     cm = rep.unit_cm is not None
     err = (f"max error {fmt(rep.max_err_cm, ' cm')}, ARMS {fmt(rep.arms_cm, ' cm')}" if cm
            else f"max error {fmt(rep.max_err)}, ARMS {fmt(rep.arms)} (file units)")

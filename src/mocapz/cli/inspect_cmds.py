@@ -46,6 +46,7 @@ def eval_cmd(original: Path, decoded: Path, as_json: bool, plot: Path | None, fo
     (a clip compressed from that range)."""
     from mocapz.files import open_motion
     from mocapz.io import load
+    from mocapz.metrics.c3d_extras import describe, extras_errors
     from mocapz.metrics.figures import evaluate, size_figures
 
     orig = with_unit(load(original), unit)
@@ -67,6 +68,9 @@ def eval_cmd(original: Path, decoded: Path, as_json: bool, plot: Path | None, fo
         rep["plot"] = str(plot)
     if opened.compressed_bytes is not None:
         rep.update(size_figures(orig, opened.compressed_bytes))
+    rest = extras_errors(orig, dec)
+    if rest is not None:
+        rep["c3d_extras"] = rest
     if as_json:
         echo_json(rep)
         return
@@ -84,3 +88,5 @@ def eval_cmd(original: Path, decoded: Path, as_json: bool, plot: Path | None, fo
     for k in ("raw_bytes", "compressed_bytes", "ratio", "ratio_file", "bytes_per_second", "plot"):
         if k in rep:
             click.echo(f"{k:>17}: {fmt(rep[k])}")
+    if rest is not None:
+        click.echo(f"{'rest of the C3D':>17}: {describe(rest)}")

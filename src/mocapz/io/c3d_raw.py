@@ -46,7 +46,8 @@ def split_c3d(path: Path, layout: C3DLayout) -> tuple[list[str], np.ndarray, C3D
         fix_mask=np.zeros((layout.frames, markers.size), dtype=bool),
         fix_words=np.zeros((layout.frames, markers.size, 3), dtype=np.int64),
         analog_words=words[:, 4 * n:].reshape(layout.frames * layout.samples, layout.channels).copy(),
-        samples=layout.samples, frame_params=_frame_params(raw, layout))
+        samples=layout.samples, frame_params=_frame_params(raw, layout), analog_scales=_analog_scales(layout),
+        analog_labels=_analog_labels(layout))
     stored = point_words[:, markers, :3]
     positions = extras.values(stored, markers)
     missing = (extras.residual_values()[:, markers] < 0) | ~np.isfinite(positions).all(axis=2)
@@ -98,6 +99,28 @@ def _strings(layout: C3DLayout, group: str, name: str) -> list[str]:
             break
         out.extend(s.strip() for s in param.strings())
     return out
+
+
+def _analog_scales(layout: C3DLayout) -> np.ndarray:
+    """``(channels,)`` ``|ANALOG:SCALE * ANALOG:GEN_SCALE|`` (a channel without a SCALE value: 1, as ezc3d)."""
+    scales = np.ones(layout.channels)
+    values: list[float] = []
+    for key in ["SCALE"] + [f"SCALE{i}" for i in range(2, 100)]:
+        param = layout.params.get(("ANALOG", key))
+        if param is None:
+            break
+        values.extend(param.numbers(layout.header.processor))
+    n = min(len(values), layout.channels)
+    scales[:n] = values[:n]
+    gen = layout.params.get(("ANALOG", "GEN_SCALE"))
+    gen_values = gen.numbers(layout.header.processor) if gen is not None else np.empty(0)
+    return np.abs(scales * (gen_values[0] if gen_values.size else 1.0))
+
+
+def _analog_labels(layout: C3DLayout) -> list[str]:
+    """ANALOG:LABELS for every channel (an empty or absent label: ``""``)."""
+    labels = _strings(layout, "ANALOG", "LABELS")[:layout.channels]
+    return labels + [""] * (layout.channels - len(labels))
 
 
 def _labels(layout: C3DLayout, n: int) -> list[str]:

@@ -91,6 +91,10 @@ class C3DExtras:
         frame_params: where the parameters that count frames hold their values in ``params``:
             ``{"POINT:FRAMES" / "TRIAL:ACTUAL_START_FIELD" / "TRIAL:ACTUAL_END_FIELD": (byte offset, kind
             2 int16 or 4 float, number of values)}``, patched by :meth:`slice`.
+        analog_scales: ``(channels,)`` float64 ``|ANALOG:SCALE * ANALOG:GEN_SCALE|``, the analog unit of one
+            stored number per channel, and analog_labels: ANALOG:LABELS, ``(channels,)``; both from the
+            file's parameters by the reader (``None`` for extras decoded from a ``.mcz``: they are needed
+            only to apply an analog precision, :mod:`mocapz.format.extras_precision`).
     """
 
     header: bytes
@@ -112,6 +116,8 @@ class C3DExtras:
     analog_words: np.ndarray
     samples: int
     frame_params: dict[str, tuple[int, int, int]] = field(default_factory=dict)
+    analog_scales: np.ndarray | None = None
+    analog_labels: list[str] | None = None
 
     # ------------------------------------------------------------------ sizes
     @property
@@ -204,17 +210,29 @@ class C3DExtras:
         else:
             struct.pack_into(f"{PROCESSOR_ORDER[self.processor]}H", params, at, value & 0xFFFF)
 
-    def slice(self, start: int, stop: int | None = None) -> C3DExtras:
+    def rows(self, start: int, stop: int) -> C3DExtras:
+        """The words of frames ``[start, stop)`` only (header and parameters as they are: see :meth:`slice`)."""
+        s = self.samples
+        return replace(self, residual_words=self.residual_words[start:stop].copy(),
+                       track_words=self.track_words[start:stop].copy(), fix_mask=self.fix_mask[start:stop].copy(),
+                       fix_words=self.fix_words[start:stop].copy(),
+                       analog_words=self.analog_words[start * s:stop * s].copy())
+
+    def slice(self, start: int, stop: int | None = None, origin: int = 0) -> C3DExtras:
         """Frames ``start:stop``: the header's frame numbers, POINT:FRAMES and TRIAL:ACTUAL_START_FIELD /
-        ACTUAL_END_FIELD patched, the tail dropped (the file is padded to a block when written)."""
+        ACTUAL_END_FIELD patched, the tail dropped (the file is padded to a block when written).
+
+        ``origin``: the frame of the whole clip these extras' first row is (extras holding only some blocks'
+        rows, :meth:`rows`; the header and parameters are the whole clip's).
+        """
         rng = range(self.frames)[start:stop]
         a, b = rng.start, rng.stop
-        if a == 0 and b == self.frames:
+        if a == 0 and b == self.frames and origin == 0:
             return self
         n = max(b - a, 0)
         order = PROCESSOR_ORDER[self.processor]
         head = bytearray(self.header)
-        first = struct.unpack(f"{order}H", head[6:8])[0] + a
+        first = struct.unpack(f"{order}H", head[6:8])[0] + origin + a
         struct.pack_into(f"{order}HH", head, 6, first & 0xFFFF, (first + n - 1) & 0xFFFF)
         params = bytearray(self.params)
         fp = self.frame_params
@@ -222,12 +240,8 @@ class C3DExtras:
             self._put(params, fp["POINT:FRAMES"], n)
         start_field = first
         if "TRIAL:ACTUAL_START_FIELD" in fp:
-            start_field = self._get(fp["TRIAL:ACTUAL_START_FIELD"]) + a
+            start_field = self._get(fp["TRIAL:ACTUAL_START_FIELD"]) + origin + a
             self._put(params, fp["TRIAL:ACTUAL_START_FIELD"], start_field)
         if "TRIAL:ACTUAL_END_FIELD" in fp:
             self._put(params, fp["TRIAL:ACTUAL_END_FIELD"], start_field + n - 1)
-        s = self.samples
-        return replace(self, header=bytes(head), params=bytes(params), tail=None,
-                       residual_words=self.residual_words[a:b].copy(), track_words=self.track_words[a:b].copy(),
-                       fix_mask=self.fix_mask[a:b].copy(), fix_words=self.fix_words[a:b].copy(),
-                       analog_words=self.analog_words[a * s:b * s].copy())
+        return replace(self.rows(a, b), header=bytes(head), params=bytes(params), tail=None)

@@ -13,10 +13,13 @@ import os
 import time
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from mocapz.errors import FormatError, MocapzError
 from mocapz.model.motion import AnyMotion
+
+if TYPE_CHECKING:
+    from mocapz.format.extras_precision import ExtrasPrecision
 
 
 @dataclass(frozen=True)
@@ -86,13 +89,14 @@ def failure_reason(exc: BaseException, path: str | os.PathLike[str]) -> str:
 
 
 def compress_clip(job: ClipJob, codec: str = "lossless", options: dict[str, Any] | None = None,
-                  force: bool = False, block: int | float | str | None = None) -> ClipResult:
+                  force: bool = False, block: int | float | str | None = None,
+                  precision: ExtrasPrecision | None = None) -> ClipResult:
     """Load one clip, compress it and write its ``.mcz`` atomically; never raises for a bad clip.
 
     Any error (unreadable file, codec refusing the data, existing output without ``force``...) is
     caught and returned in :attr:`ClipResult.error`, so one bad clip never stops a batch. ``options`` are
     checked ones (``CodecInfo.validate``, done once by :func:`~mocapz.parallel.folder.compress_folder`);
-    ``block`` the block length (:func:`mocapz.compress`).
+    ``block`` the block length and ``precision`` the C3D analogs' and tracks' (:func:`mocapz.compress`).
     """
     from mocapz.api import compress_checked
     from mocapz.codecs import get_codec
@@ -107,7 +111,7 @@ def compress_clip(job: ClipJob, codec: str = "lossless", options: dict[str, Any]
             raise MocapzError(f"output {out} exists (use -f / force=True to overwrite)")
         in_bytes = os.path.getsize(job.source) if os.path.exists(job.source) else 0
         motion = load(job.source)
-        data = compress_checked(motion, get_codec(codec), options or {}, block)
+        data = compress_checked(motion, get_codec(codec), options or {}, block, precision=precision)
         out.parent.mkdir(parents=True, exist_ok=True)
         atomic_write(out, lambda tmp: tmp.write_bytes(data), force=force)
         return ClipResult(job.index, job.name, job.output, motion.n_frames, motion.raw_bytes, in_bytes, len(data),

@@ -17,6 +17,7 @@ from pathlib import Path
 from typing import Any
 
 from mocapz.errors import MocapzError
+from mocapz.format.extras_precision import ExtrasPrecision
 from mocapz.parallel.clip import ClipJob, ClipResult, clip_modules, compress_clip, failure_reason
 from mocapz.parallel.discover import plan
 from mocapz.parallel.pool import Pool
@@ -37,7 +38,8 @@ def compress_folder(input_dir: str | os.PathLike[str], output_dir: str | os.Path
                     options: dict[str, Any] | None = None, *, jobs: int | None = None, scheduler: str | None = None,
                     force: bool = False, progress: bool = False, pool: Pool | None = None,
                     on_result: Callable[[ClipResult], None] | None = None,
-                    block: int | float | str | None = None) -> BatchReport:
+                    block: int | float | str | None = None,
+                    precision: ExtrasPrecision | None = None) -> BatchReport:
     """Compress every clip of ``input_dir`` into a ``.mcz`` under ``output_dir`` (layout mirrored).
 
     Args:
@@ -50,6 +52,8 @@ def compress_folder(input_dir: str | os.PathLike[str], output_dir: str | os.Path
             the pool is left open, e.g. to run several batches on one Dask cluster).
         on_result: called in this process with each :class:`ClipResult` as it completes.
         block: the length of the independent blocks every clip is coded in (:func:`mocapz.compress`).
+        precision: the C3D analog channels' and tracks' precision
+            (:class:`~mocapz.format.extras_precision.ExtrasPrecision`; None: exact).
 
     Returns:
         A :class:`BatchReport`; failed clips are in ``report.failed``, nothing is raised for them. Raises
@@ -66,7 +70,8 @@ def compress_folder(input_dir: str | os.PathLike[str], output_dir: str | os.Path
         raise MocapzError(f"{out_root}: output exists and is not a folder")
     jobs_list = plan(input_dir, out_root)
     out_root.mkdir(parents=True, exist_ok=True)
-    worker = functools.partial(compress_clip, codec=codec, options=options, force=force, block=block)
+    worker = functools.partial(compress_clip, codec=codec, options=options, force=force, block=block,
+                               precision=precision)
     results: list[ClipResult | None] = [None] * len(jobs_list)
     t0 = time.perf_counter()
     own = pool is None
