@@ -18,7 +18,6 @@ import numpy as np
 
 from mocapz.errors import FormatError
 from mocapz.io.c3d_checks import BLOCK, PROCESSORS, C3DLayout
-from mocapz.io.c3d_tolerant import point_scales
 from mocapz.model.c3d_extras import TRACK_UNIT_PARAMS, C3DExtras, float_words, word_dtype
 
 
@@ -87,6 +86,29 @@ def _file_bytes(path: Path) -> bytes:
         return path.read_bytes()
     except OSError as exc:
         raise FormatError(path, f"could not read the file ({exc.strerror or exc})") from None
+
+
+def _numbers(layout: C3DLayout, group: str, name: str) -> np.ndarray:
+    """A numeric parameter with its ``NAME2``, ``NAME3``... continuations, float64."""
+    out = []
+    for key in [name] + [f"{name}{i}" for i in range(2, 100)]:
+        param = layout.params.get((group, key))
+        if param is None:
+            break
+        out.append(param.numbers(layout.header.processor))
+    return np.concatenate(out) if out else np.empty(0)
+
+
+def point_scales(layout: C3DLayout) -> np.ndarray:
+    """``|scale|`` of every point, ``(points,)``: POINT:SCALE's value for the point if it has one for
+    each, else its first value, else the header's scale (as ezc3d); float64 of the stored float32."""
+    values = np.abs(_numbers(layout, "POINT", "SCALE"))
+    if values.size == 0:
+        values = np.array([abs(layout.header.scale)])
+    scales = np.full(layout.points, values[0])
+    n = min(values.size, layout.points)
+    scales[:n] = values[:n]
+    return scales
 
 
 def _strings(layout: C3DLayout, group: str, name: str) -> list[str]:
