@@ -311,3 +311,29 @@ def test_c3d_package_geometry_must_match_the_checks(monkeypatch: pytest.MonkeyPa
     with pytest.raises(FormatError, match=r"Eb015si\.c3d: c3d reads 26 points, 48 analog values a frame "
                                           r"\(integer storage\) where the file holds 26 points, 64 analog"):
         read_c3d_package(path, check_c3d_file(path))
+
+
+HANG = """
+import sys
+from mocapz.errors import FormatError
+from mocapz.io.c3d import read_c3d
+try:
+    read_c3d(sys.argv[1])
+except FormatError as exc:
+    print(exc)
+"""
+
+
+def test_empty_strings_without_end_are_refused(tmp_path: Path) -> None:
+    """A char parameter of length 0 declaring 255**3 strings (it takes no bytes) makes readers loop over
+    each one (ezc3d and the c3d package hang): the checks refuse it. In a child process with a timeout."""
+    _, data = _seed(tmp_path)
+    at = data.index(b"LABELS", (data[0] - 1) * 512) + 6  # offset (2), type, dimension count, dimensions
+    assert data[at + 2:at + 4] == bytes([255, 2]) and data[at + 6:at + 9] == b"ABC"
+    b = bytearray(data)
+    b[at + 3:at + 9] = bytes([4, 0, 255, 255, 255, 0])  # 4 dimensions (0, 255, 255, 255), no description
+    (tmp_path / "strings.c3d").write_bytes(bytes(b))
+    run = subprocess.run([sys.executable, "-c", HANG, str(tmp_path / "strings.c3d")],
+                         capture_output=True, text=True, timeout=60)
+    assert run.returncode == 0, run.stderr[-2000:]
+    assert "parameter 'LABELS' declares 16581375 strings of length 0" in run.stdout
