@@ -7,7 +7,9 @@ codecs. One module per job:
 * :mod:`~mocapz.io.amc`: AMC motion files (with their skeleton), :mod:`~mocapz.io.asf` parses the ASF
   skeleton, :mod:`~mocapz.io.asf_write` produces the ASF written beside an AMC;
 * :mod:`~mocapz.io.c3d`: C3D files through ezc3d, :mod:`~mocapz.io.c3d_checks` checks the raw file first,
-  :mod:`~mocapz.io.c3d_tolerant` decodes those ezc3d cannot read (SGI/MIPS storage, header errors);
+  :mod:`~mocapz.io.c3d_pure` reads those ezc3d cannot read (SGI/MIPS storage, header errors) with the
+  pure-Python ``c3d`` package, :mod:`~mocapz.io.c3d_raw` splits the file's words into marker positions
+  and what else it holds, and puts them back together byte for byte;
 * :mod:`~mocapz.io.trc`: TRC data rows, :mod:`~mocapz.io.trc_header` the TRC header lines;
 * :mod:`~mocapz.io.common`: helpers every format shares (decimals, text, atomic output, units).
 """

@@ -1,5 +1,6 @@
-"""C3D marker files, read through ``ezc3d`` (or mocapz's own decoder where ezc3d cannot) and written
-back in their own storage (or, for a motion that did not come from a C3D file, through ``ezc3d``).
+"""C3D marker files, read through ``ezc3d`` or, where ezc3d cannot read them, the pure-Python ``c3d``
+package, and written back in their own storage (or, for a motion that did not come from a C3D file,
+through ``ezc3d``).
 
 Reading keeps the marker positions (``POINT:LABELS``, ``POINT:RATE``, ``POINT:UNITS``, first frame),
 missing samples (a negative residual word or a non-finite value) as NaN, and everything else the file
@@ -7,17 +8,23 @@ holds in a :class:`~mocapz.model.c3d_extras.C3DExtras` (``metadata["c3d"]``, mad
 :mod:`mocapz.io.c3d_raw`): the header and parameter section verbatim, residual words, analog samples,
 the model outputs (points named in POINT:ANGLES / FORCES / MOMENTS / POWERS / REACTIONS, which are not
 markers). :func:`write_c3d` writes them back byte for byte. For Python users ``metadata`` also holds the
-markers' residuals, the analog channels as ezc3d scales them, their labels, units and rate.
+markers' residuals, the analog channels as the reader scales them, their labels, units and rate.
 
-Before ezc3d sees a file it is checked by :func:`mocapz.io.c3d_checks.check_c3d_file` (ezc3d segfaults
-on some corrupt parameter sections, silently reads a truncated file as a shorter clip and raises bare C++
-errors on garbage). Files ezc3d must not be given (SGI/MIPS storage; a POINT:FRAMES past the end of the
-file) and files ezc3d refuses although their structure passed the checks (c3d.org ``Dance.c3d``: header
-errors) are decoded by :mod:`mocapz.io.c3d_tolerant` instead, which gives ezc3d's values on the files
-ezc3d reads; ``metadata["c3d_reader"]`` says which reader read the file and why. What neither reads
-becomes a :class:`FormatError`.
+Readers, chosen automatically. Before any reader sees a file it is checked by
+:func:`mocapz.io.c3d_checks.check_c3d_file` (ezc3d segfaults on some corrupt parameter sections,
+silently reads a truncated file as a shorter clip and raises bare C++ errors on garbage; the checks
+refuse only what would crash or hang a reader). Then:
+
+1. ``ezc3d``, unless it must not be given the file (SGI/MIPS storage; a POINT:FRAMES past the end of
+   the file);
+2. the ``c3d`` package (:mod:`mocapz.io.c3d_pure`) for those files and for the files ezc3d refuses
+   although their structure passed the checks (c3d.org ``Dance.c3d``: header errors);
+3. what neither reads becomes a :class:`FormatError` naming the file and both reasons.
+
+``metadata["c3d_reader"]`` says which reader read the file and why: ``"ezc3d"`` or
+``"c3d (<why not ezc3d>)"``. The marker positions and the extras are decoded from the file's words by
+:mod:`mocapz.io.c3d_raw` whichever reader read it, so that a file comes back bit for bit in its storage.
 """
-
 from __future__ import annotations
 
 import os
@@ -50,7 +57,7 @@ def read_c3d(path: str | os.PathLike[str]) -> MarkerMotion:
         ``residuals`` ``(frames, markers)``, ``point_scale``, ``point_descriptions`` and, when the file
         has analog channels, ``analogs`` ``(channels, samples)`` float64 with ``analog_labels``,
         ``analog_units``, ``analog_descriptions`` and ``analog_rate`` (Hz); ``c3d_reader`` is ``"ezc3d"``
-        or, for a file ezc3d cannot read, ``"mocapz.io.c3d_tolerant (<why>)"``.
+        or, for a file ezc3d cannot read, ``"c3d (<why not ezc3d>)"`` (the ``c3d`` package).
     """
     path = Path(path)
     layout = check_c3d_file(path)
@@ -105,20 +112,21 @@ def _metadata(path: Path, c3d: Any, layout: C3DLayout, residuals: np.ndarray,
 
 
 def _load(path: Path, layout: C3DLayout) -> tuple[Any, str]:
-    """The file read by ezc3d, or by :mod:`mocapz.io.c3d_tolerant` when ezc3d must not be given it or
-    refuses it; and which reader read it (with why, for the tolerant one)."""
-    why = layout.ezc3d_unsafe
-    if not why:
+    """The file read by ezc3d, or by the ``c3d`` package (:mod:`mocapz.io.c3d_pure`) when ezc3d must not
+    be given it or refuses it; and which reader read it (with why ezc3d did not, for ``c3d``)."""
+    if layout.ezc3d_unsafe:
+        why = f"ezc3d not given the file: {layout.ezc3d_unsafe}"
+    else:
         import ezc3d
 
         try:
             return ezc3d.c3d(str(path), extract_forceplat_data=False), "ezc3d"
         except Exception as exc:  # ezc3d raises RuntimeError, OSError, ValueError... from C++
             why = f"ezc3d: {_short(exc)}"
-    from mocapz.io.c3d_tolerant import read_c3d_raw
+    from mocapz.io.c3d_pure import read_c3d_package
 
     try:
-        return read_c3d_raw(path, layout), f"mocapz.io.c3d_tolerant ({why})"
+        return read_c3d_package(path, layout), f"c3d ({why})"
     except FormatError as exc:
         raise FormatError(path, f"not a readable C3D file ({why}; {exc.message})") from None
 

@@ -6,8 +6,16 @@ parameter section itself and checks the header key and processor type, every par
 parameters ezc3d indexes blindly and the data size against the file size; any problem becomes a
 :class:`FormatError`. It returns a :class:`C3DLayout` (the header, the parameters and the checked data
 size), which also says when ezc3d must not be given the file at all (SGI/MIPS storage, which ezc3d
-refuses; a POINT:FRAMES that runs past the end of the file) so that :mod:`mocapz.io.c3d_tolerant` reads
-it instead. Sizes are in bytes, positions in 512-byte blocks (1-based, as in the file).
+refuses; a POINT:FRAMES that runs past the end of the file) so that the ``c3d`` package
+(:mod:`mocapz.io.c3d_pure`) reads it instead. Sizes are in bytes, positions in 512-byte blocks (1-based,
+as in the file).
+
+The checks refuse only what would crash or hang a reader or what no reader can read as the file
+declares it: a parameter record that does not fit in its space, char parameters of length 0 declaring
+more strings than the section has bytes (ezc3d and the c3d package loop over each), parameters ezc3d
+indexes blindly left empty, data past the end of the file. Header inconsistencies readers survive
+(c3d.org ``FP1.C3D``: more parameter blocks filled than declared; ``Dance.c3d``: POINT:DATA_START 0, a
+float ANALOG:OFFSET, POINT:FRAMES one past the data) are left to the readers.
 """
 
 from __future__ import annotations
@@ -235,6 +243,9 @@ def _walk_parameters(section: bytes, processor: int, path: Path) -> dict[tuple[s
         body = _record_body(section, name_end + 2, gid > 0, min(stop, len(section)))
         if body is None:
             raise FormatError(path, f"corrupt C3D: parameter record {name!r} does not fit in its space")
+        if body.count > len(section):  # strings of length 0: readers loop over (or allocate) each one
+            raise FormatError(path, f"corrupt C3D: parameter {name!r} declares {body.count} strings of "
+                                    f"length 0 in a {len(section)}-byte parameter section")
         if gid < 0:
             groups[-gid] = name
         else:

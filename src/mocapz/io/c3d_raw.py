@@ -18,7 +18,6 @@ import numpy as np
 
 from mocapz.errors import FormatError
 from mocapz.io.c3d_checks import BLOCK, PROCESSORS, C3DLayout
-from mocapz.io.c3d_tolerant import point_scales
 from mocapz.model.c3d_extras import TRACK_UNIT_PARAMS, C3DExtras, float_words, word_dtype
 
 
@@ -90,6 +89,29 @@ def _file_bytes(path: Path) -> bytes:
         raise FormatError(path, f"could not read the file ({exc.strerror or exc})") from None
 
 
+def _numbers(layout: C3DLayout, group: str, name: str) -> np.ndarray:
+    """A numeric parameter with its ``NAME2``, ``NAME3``... continuations, float64."""
+    out = []
+    for key in [name] + [f"{name}{i}" for i in range(2, 100)]:
+        param = layout.params.get((group, key))
+        if param is None:
+            break
+        out.append(param.numbers(layout.header.processor))
+    return np.concatenate(out) if out else np.empty(0)
+
+
+def point_scales(layout: C3DLayout) -> np.ndarray:
+    """``|scale|`` of every point, ``(points,)``: POINT:SCALE's value for the point if it has one for
+    each, else its first value, else the header's scale (as ezc3d); float64 of the stored float32."""
+    values = np.abs(_numbers(layout, "POINT", "SCALE"))
+    if values.size == 0:
+        values = np.array([abs(layout.header.scale)])
+    scales = np.full(layout.points, values[0])
+    n = min(values.size, layout.points)
+    scales[:n] = values[:n]
+    return scales
+
+
 def _strings(layout: C3DLayout, group: str, name: str) -> list[str]:
     """A char parameter with its ``NAME2``, ``NAME3``... continuations, blanks stripped."""
     out: list[str] = []
@@ -104,17 +126,10 @@ def _strings(layout: C3DLayout, group: str, name: str) -> list[str]:
 def _analog_scales(layout: C3DLayout) -> np.ndarray:
     """``(channels,)`` ``|ANALOG:SCALE * ANALOG:GEN_SCALE|`` (a channel without a SCALE value: 1, as ezc3d)."""
     scales = np.ones(layout.channels)
-    values: list[float] = []
-    for key in ["SCALE"] + [f"SCALE{i}" for i in range(2, 100)]:
-        param = layout.params.get(("ANALOG", key))
-        if param is None:
-            break
-        values.extend(param.numbers(layout.header.processor))
-    n = min(len(values), layout.channels)
-    scales[:n] = values[:n]
-    gen = layout.params.get(("ANALOG", "GEN_SCALE"))
-    gen_values = gen.numbers(layout.header.processor) if gen is not None else np.empty(0)
-    return np.abs(scales * (gen_values[0] if gen_values.size else 1.0))
+    values = _numbers(layout, "ANALOG", "SCALE")[:layout.channels]
+    scales[:values.size] = values
+    gen = _numbers(layout, "ANALOG", "GEN_SCALE")
+    return np.abs(scales * (gen[0] if gen.size else 1.0))
 
 
 def _analog_labels(layout: C3DLayout) -> list[str]:

@@ -3,7 +3,7 @@ against ``xz -9e`` of the source, how many bytes hold the rest of the C3D (the `
 the written file is the source byte for byte (SHA-256), and the time of compress / decompress (API calls,
 file reading and writing excluded).
 
-Usage: python scripts/c3d.py [DATA_DIR] > docs/benchmarks/c3d.md
+Usage: python scripts/c3d_lossless.py [DATA_DIR] > docs/benchmarks/c3d.md
 """
 
 from __future__ import annotations
@@ -26,7 +26,7 @@ FILES = [f"other/markers/btkdata/c3d_samples/{n}" for n in (
 def main() -> None:
     data = Path(sys.argv[1]) if len(sys.argv) > 1 else Path(__file__).resolve().parents[2] / "shared" / "data"
     print("# C3D files through the lossless codec\n")
-    print("`python scripts/c3d.py`: `.mcz` against the source and against `xz -9e` of the source "
+    print("`python scripts/c3d_lossless.py`: `.mcz` against the source and against `xz -9e` of the source "
           "(`lzma` preset 9e, the same as `xz -9e -k`); `rest` = bytes of the `c3d.*` sections (header, "
           "parameters, residuals, analogs, model outputs); identical = SHA-256 of the written file equals the "
           "source's; times are the API calls.\n")
