@@ -337,3 +337,20 @@ def test_empty_strings_without_end_are_refused(tmp_path: Path) -> None:
                          capture_output=True, text=True, timeout=60)
     assert run.returncode == 0, run.stderr[-2000:]
     assert "parameter 'LABELS' declares 16581375 strings of length 0" in run.stdout
+
+
+def test_frames_without_data_are_bounded() -> None:
+    """With no point and no analog channel the file size cannot check the frame count: a float POINT:FRAMES of
+    2**31 would make both readers loop over empty frames. The checks refuse a count over 16 bits."""
+    import struct as _struct
+
+    from mocapz.io.c3d_checks import C3DHeader, C3DParam, _data_layout
+
+    h = C3DHeader(param_block=2, param_blocks=1, processor=84, points=0, first_frame=1, last_frame=1,
+                  is_float=True, data_start=3, analog_samples=0, rate=100.0, scale=-1.0)
+    params = {("POINT", "USED"): C3DParam(2, (), _struct.pack("<h", 0)),
+              ("POINT", "FRAMES"): C3DParam(4, (), _struct.pack("<f", 2.0**31))}
+    with pytest.raises(FormatError, match="2147483648 frames declared with no point and no analog channel"):
+        _data_layout(h, params, 3 * 512, Path("empty_frames.c3d"))
+    params[("POINT", "FRAMES")] = C3DParam(2, (), _struct.pack("<h", 12))
+    assert _data_layout(h, params, 3 * 512, Path("empty_frames.c3d")).frames == 12

@@ -204,13 +204,16 @@ EXTRAS_CASES = ({}, {"analog_precision": 0.01, "track_precision": "angles=0.01,f
                 {"block": 20})
 
 
+def c3d_file(options: dict[str, Any]) -> bytes:
+    """20 frames (60 in blocks) of the Plug-in-Gait trial, lossless, with the extras ``options`` ask for."""
+    pig = mocapz.load(data_path("other/markers/btkdata/c3d_samples/PiG_Motion-FlatFoot-Full.c3d"))
+    return mocapz.compress(pig.slice(0, 60 if "block" in options else 20), codec="lossless", **options)
+
+
 def _c3d_cases(options: dict[str, Any]) -> Iterator[tuple[str, bytes]]:
     """The ``c3d.*`` sections (parameters, residual words, model-output tracks, analogs, missing samples) of
-    20 frames (60 in blocks) of the Plug-in-Gait trial, each missing, then damaged in every way of
-    :func:`_damage`."""
-    pig = mocapz.load(data_path("other/markers/btkdata/c3d_samples/PiG_Motion-FlatFoot-Full.c3d"))
-    clip = pig.slice(0, 60 if "block" in options else 20)
-    box = Container.from_bytes(mocapz.compress(clip, codec="lossless", **options))
+    :func:`c3d_file`, each missing, then damaged in every way of :func:`_damage`."""
+    box = Container.from_bytes(c3d_file(options))
     mine = [k for k in box.sections if k.startswith("c3d.")]
     assert len(mine) == (14 if "block" in options else 5)
     if "analog_precision" in options:  # the stepped form is what is damaged (20 frames: one block)

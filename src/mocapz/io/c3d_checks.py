@@ -29,6 +29,7 @@ import numpy as np
 from mocapz.errors import FormatError
 
 C3D_KEY = 0x50  # second byte of every C3D file
+MAX_EMPTY_FRAMES = 65535  # most frames a file without points and analogs may declare (the header's 16 bits)
 BLOCK = 512
 PROCESSORS = {84: "<", 85: "<", 86: ">"}  # Intel, DEC (little-endian words), MIPS (big-endian)
 # Parameters ezc3d reads as ``values[0]`` without checking that they hold a value.
@@ -334,6 +335,9 @@ def _data_layout(h: C3DHeader, params: dict[tuple[str, str], C3DParam], size: in
         raise FormatError(path, f"corrupt C3D: {points} points / {channels} analog channels declared")
     layout = C3DLayout(h, params, points, frames, channels, samples,
                        "SGI/MIPS storage, which ezc3d does not read" if h.processor == 86 else "")
+    if layout.frame_values == 0 and frames > MAX_EMPTY_FRAMES:  # no data to measure the count against
+        raise FormatError(path, f"corrupt C3D: {frames} frames declared with no point and no analog channel "
+                                f"(readers would loop over them)")
     end = layout.data_offset + frames * layout.frame_values * layout.value_bytes
     if end <= size:
         return layout
