@@ -258,6 +258,10 @@ def test_cli_library_modes_append_extract_verify(tmp_path) -> None:
     res = runner.invoke(cli, ["compress-db", first, "-o", str(lib), "--codec", "quant", "--max-error", "1cm"])
     assert res.exit_code == 0, res.output
     before = lib.read_bytes()
+    two = tmp_path / "two.mczdb"
+    res = runner.invoke(cli, ["compress-db", first, "-o", str(two), "--codec", "QUANT", "--max-error", "1cm",
+                              "-j", "2"])
+    assert res.exit_code == 0 and two.read_bytes() == before  # the same bytes whatever --jobs
     res = runner.invoke(cli, ["compress-db", second, "-o", str(lib), "--append", "--max-error", "1cm", "--json"])
     assert res.exit_code == 0, res.output
     assert describe_library(lib)["clips"] == ["09_06", "09_01"] and len(lib.read_bytes()) > len(before)

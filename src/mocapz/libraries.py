@@ -22,13 +22,30 @@ from typing import Any
 
 from mocapz import blocking
 from mocapz.codecs import get_codec
-from mocapz.codecs.library import LibraryMode, library_mode
+from mocapz.codecs.library import LibraryMode, quant_mode
 from mocapz.errors import FormatError, MocapzError, OptionError
 from mocapz.format.extras import attach, sections_of, split_sections
 from mocapz.format.library import Library, clip_entry, read_library, read_members, unique_names
 from mocapz.model.motion import AnyMotion
 
 DEFAULT_CODEC = "patterns"
+LIBRARY_CODECS = ("pga", "patterns", "quant")
+
+
+def library_mode(codec: str) -> LibraryMode:
+    """The library mode of a codec (OptionError for a codec without one)."""
+    name = get_codec(codec).name
+    if name == "quant":
+        return quant_mode()
+    if name == "pga":
+        from mocapz.codecs.pga.library import MODE as PGA_MODE
+
+        return PGA_MODE
+    if name == "patterns":
+        from mocapz.codecs.patterns.library import MODE as PATTERNS_MODE
+
+        return PATTERNS_MODE
+    raise OptionError(f"the {name} codec has no library mode (compress-db takes {', '.join(LIBRARY_CODECS)})")
 
 
 def _checked(codec: str, motions: list[AnyMotion], options: dict[str, Any]) -> tuple[LibraryMode, dict[str, Any]]:

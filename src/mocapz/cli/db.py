@@ -68,11 +68,10 @@ def compress_db(inputs: tuple[Path, ...], output: Path, force: bool, append: boo
     read is reported and left out (exit code 1)."""
     import sys
 
-    from mocapz.codecs.library import library_mode
     from mocapz.errors import MocapzError
     from mocapz.format.library import read_library
     from mocapz.io.common import atomic_write
-    from mocapz.libraries import append_library, compress_library
+    from mocapz.libraries import append_library, compress_library, library_mode
     from mocapz.parallel.discover import discover
     from mocapz.parallel.load import load_many
 

@@ -7,7 +7,7 @@ carry the correction layer (:mod:`mocapz.codecs.correction`), so that its target
 clip is compressed alone. Clips added later to a group (``--append``) are coded against its stored shared
 sections (:attr:`LibraryMode.encode_into`) without touching the other clips, where the codec can.
 
-The registry is :func:`library_mode` (``pga``, ``patterns``, ``quant``); the file framing is
+The registry is :func:`mocapz.libraries.library_mode` (``pga``, ``patterns``, ``quant``); the file framing is
 :mod:`mocapz.format.library`, which a codec never sees.
 """
 
@@ -17,7 +17,6 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Any
 
-from mocapz.errors import OptionError
 from mocapz.model.header import ClipHeader
 from mocapz.model.motion import AnyMotion, MarkerMotion
 
@@ -61,7 +60,8 @@ def layout_key(motion: AnyMotion) -> tuple:
     return ("skeleton", tuple(sk.names), tuple(sk.channels), tuple(sk.rotation_order), tuple(sk.parents.tolist()))
 
 
-def _quant_mode() -> LibraryMode:
+def quant_mode() -> LibraryMode:
+    """quant's library mode: the skeleton shared (by the library), each clip coded as alone."""
     from mocapz.codecs.baselines.quant import DECODE, ENCODE, VERSION
 
     def encode_into(shared: Mapping[str, bytes], motions: list[AnyMotion], options: dict[str, Any]) -> list[Sections]:
@@ -73,24 +73,3 @@ def _quant_mode() -> LibraryMode:
 
     return LibraryMode("quant", VERSION, encode_group, encode_into, lambda shared, own, header: DECODE(own, header),
                        layout_key)
-
-
-def library_mode(codec: str) -> LibraryMode:
-    """The library mode of a codec (OptionError for a codec without one)."""
-    from mocapz.codecs import get_codec
-
-    name = get_codec(codec).name
-    if name == "quant":
-        return _quant_mode()
-    if name == "pga":
-        from mocapz.codecs.pga.library import MODE as PGA_MODE
-
-        return PGA_MODE
-    if name == "patterns":
-        from mocapz.codecs.patterns.library import MODE as PATTERNS_MODE
-
-        return PATTERNS_MODE
-    raise OptionError(f"the {name} codec has no library mode (compress-db takes pga, patterns or quant)")
-
-
-LIBRARY_CODECS = ("pga", "patterns", "quant")

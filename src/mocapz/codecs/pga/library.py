@@ -12,7 +12,8 @@ holds as when it is compressed alone.
 
 Shared sections: ``m`` (the two model matrices, packed as in ``data``) and ``p`` (uvarint k, uvarint basis
 bits, float64 mean step). A clip's own sections: ``params``, ``data`` (without the model), ``outl`` and the
-correction's ``c.*``, as in a single file. New clips of the group (``--append``) are coded against the
+correction's ``c.*``, as in a single file; or, when that is smaller, the sections of the clip's single file
+(its own model) and the empty flag section ``own``. New clips of the group (``--append``) are coded against the
 stored model, the other clips untouched.
 """
 
@@ -27,7 +28,7 @@ import numpy as np
 
 from mocapz.codecs.correction.wrap import corrected
 from mocapz.codecs.library import LibraryMode, Sections, layout_key
-from mocapz.codecs.pga import VERSION, _base_options
+from mocapz.codecs.pga import DECODE, ENCODE, VERSION, _base_options
 from mocapz.codecs.pga.decode import decode as decode_single
 from mocapz.codecs.pga.effectors import find_effectors
 from mocapz.codecs.pga.encode import Prepared, encode_prepared, prepare
@@ -45,6 +46,7 @@ from mocapz.model.motion import AnyMotion, Motion
 
 MODEL_MATRICES = 2  # header column and loadings: the first matrices of a single clip's ``data``
 MAX_K = 20  # the single-clip default's cap
+OWN = "own"  # flag section: the clip is coded with its own model (a single file's sections)
 
 
 @dataclass
@@ -158,13 +160,26 @@ def _coder(p: Prepared, model: SharedModel, shared: Mapping[str, bytes]) -> Any:
     return corrected(base, dec, "pga", OPTIONS, _base_options, zero_base=False)
 
 
+def _smaller(p: Prepared, model: SharedModel, shared: Mapping[str, bytes], options: dict[str, Any]) -> Sections:
+    """The clip coded against the shared model, or with its own model (its single-file sections and the flag
+    section ``own``) when that is smaller; both with the correction layer."""
+    with_shared = _coder(p, model, shared)[0](p.motion, **options)
+    alone = {**ENCODE(p.motion, **options), OWN: b""}
+    return min((with_shared, alone), key=_size)
+
+
+def _size(sections: Sections) -> int:
+    return sum(len(k) + 2 + len(v) for k, v in sections.items())
+
+
 def encode_into(shared: Mapping[str, bytes], motions: list[AnyMotion], options: dict[str, Any]) -> list[Sections]:
-    """New clips coded against a group's stored model (targets met by the correction layer)."""
+    """New clips coded against a group's stored model (or their own, when smaller; targets met by the
+    correction layer)."""
     out = []
     for m in motions:
         p = _prepare(m, options)  # type: ignore[arg-type]
         model = SharedModel.from_sections(shared, inner_joints(m.skeleton))  # type: ignore[union-attr]
-        out.append(_coder(p, model, shared)[0](m, **options))
+        out.append(_smaller(p, model, shared, options))
     return out
 
 
@@ -174,12 +189,16 @@ def encode_group(motions: list[AnyMotion], options: dict[str, Any]
     preps = [_prepare(m, options) for m in motions]  # type: ignore[arg-type]
     model = fit_shared(preps, options)
     shared = model.sections()
-    own = [_coder(p, model, shared)[0](m, **options) for p, m in zip(preps, motions, strict=True)]
+    own = [_smaller(p, model, shared, options) for p in preps]
     return shared, own, {"geodesics": model.k, "bits": model.basis_bits}
 
 
 def decode_member(shared: Mapping[str, bytes], own: Sections, header: ClipHeader) -> AnyMotion:
-    """One clip from its group's shared model and its own sections (correction applied)."""
+    """One clip from its group's shared model and its own sections (correction applied); a clip with the
+    ``own`` flag section is a single file's sections (its own model)."""
+    if OWN in own:
+        return DECODE({k: v for k, v in own.items() if k != OWN}, header)
+
     def dec(sections: Sections, h: ClipHeader) -> AnyMotion:
         return decode_single(_joined(shared, sections), h)
 
