@@ -275,3 +275,33 @@ def test_cli_library_modes_append_extract_verify(tmp_path) -> None:
     assert res.exit_code == 0 and '"ok": true' in res.output
     res = runner.invoke(cli, ["compress-db", first, "-o", str(tmp_path / "x.mczdb"), "--codec", "lossless"])
     assert isinstance(res.exception, OptionError) and "no library mode" in str(res.exception)
+
+
+def test_a_failed_append_leaves_the_library_as_it_was(tmp_path, monkeypatch) -> None:
+    """The new library is written to a temporary file renamed into place: a failure midway (here the encoder
+    of the new clip) leaves the old file byte for byte; a truncated library is an error naming the file."""
+    import mocapz.libraries as libraries
+    from mocapz.codecs.library import LibraryMode
+
+    runner = CliRunner()
+    lib = tmp_path / "q.mczdb"
+    first, second = (str(data_path(p)) for p in SAME_SKELETON)
+    assert runner.invoke(cli, ["compress-db", first, "-o", str(lib), "--codec", "quant"]).exit_code == 0
+    before = lib.read_bytes()
+    real = libraries.library_mode
+
+    def broken(codec: str) -> LibraryMode:
+        mode = real(codec)
+
+        def fail(*args: object) -> list:
+            raise MocapzError("encoder failed midway")
+
+        return LibraryMode(mode.codec, mode.version, mode.encode_group, fail, mode.decode, mode.group_key)
+
+    monkeypatch.setattr(libraries, "library_mode", broken)
+    res = runner.invoke(cli, ["compress-db", second, "-o", str(lib), "--append"])
+    assert res.exit_code != 0 and "midway" in str(res.exception)
+    assert lib.read_bytes() == before and sorted(p.name for p in tmp_path.iterdir()) == ["q.mczdb"]
+    (tmp_path / "cut.mczdb").write_bytes(before[: len(before) // 2])
+    with pytest.raises(FormatError, match="cut.mczdb"):
+        describe_library(tmp_path / "cut.mczdb")

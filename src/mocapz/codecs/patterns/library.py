@@ -9,8 +9,11 @@ without decoding any other clip.
 
 A group's shared sections are ``h`` (hierarchy with names), ``d<k>`` (pattern database of node ``k``) and
 ``u<k>`` (its usage counts, prior of the clips' index coders); a clip's own sections are those of a
-single-clip stream (``p``, ``r``, ``g``, ``c``, ``s<k>``). The library file that stores them is
-:mod:`mocapz.format.library`; this module sees only sections and typed headers.
+single-clip stream (``p``, ``r``, ``g``, ``c``, ``s<k>``) plus the correction layer's ``c.*``
+(:func:`encode_group`: every clip meets its target as when compressed alone). Libraries written before the
+correction (format version 1) decode as they were. The databases depend on every clip of the group, so clips
+appended later form a group of their own (:data:`MODE` has no ``encode_into``). The library file that stores
+them is :mod:`mocapz.format.library`; this module sees only sections and typed headers.
 """
 
 from __future__ import annotations
@@ -156,11 +159,14 @@ def encode_group(motions: list[AnyMotion], options: dict[str, Any]
             return dict(clip)
 
         own.append(corrected(base, _decoder(coded.shared), "patterns", OPTIONS)[0](m, **options))
+    shared = coded.shared
+    if all(k.startswith("c.") for sections in own for k in sections):
+        shared = {}  # every clip is coded by its correction alone (smaller): the databases serve no clip
     info = {"kind": motions[0].kind, "nodes": len(coded.node_names), "node_names": coded.node_names,
             "segments": coded.segments, "clusters": coded.clusters,
             "settings": {"theta": settings.theta, "ratio": settings.ratio, "tolerance": settings.tol,
                          "bits": settings.bits, "heading": settings.heading}}
-    return coded.shared, own, info
+    return shared, own, info
 
 
 def _decoder(shared: Mapping[str, bytes]) -> Callable[[dict[str, bytes], ClipHeader], AnyMotion]:

@@ -13,7 +13,8 @@ holds as when it is compressed alone.
 Shared sections: ``m`` (the two model matrices, packed as in ``data``) and ``p`` (uvarint k, uvarint basis
 bits, float64 mean step). A clip's own sections: ``params``, ``data`` (without the model), ``outl`` and the
 correction's ``c.*``, as in a single file; or, when that is smaller, the sections of the clip's single file
-(its own model) and the empty flag section ``own``. New clips of the group (``--append``) are coded against the
+(its own model) and the empty flag section ``own``; a group whose model would cost more than it saves keeps
+none (no ``m``, ``p``: every clip with its own). New clips of the group (``--append``) are coded against the
 stored model, the other clips untouched.
 """
 
@@ -160,12 +161,11 @@ def _coder(p: Prepared, model: SharedModel, shared: Mapping[str, bytes]) -> Any:
     return corrected(base, dec, "pga", OPTIONS, _base_options, zero_base=False)
 
 
-def _smaller(p: Prepared, model: SharedModel, shared: Mapping[str, bytes], options: dict[str, Any]) -> Sections:
-    """The clip coded against the shared model, or with its own model (its single-file sections and the flag
-    section ``own``) when that is smaller; both with the correction layer."""
-    with_shared = _coder(p, model, shared)[0](p.motion, **options)
-    alone = {**ENCODE(p.motion, **options), OWN: b""}
-    return min((with_shared, alone), key=_size)
+def _both(p: Prepared, model: SharedModel, shared: Mapping[str, bytes], options: dict[str, Any]
+          ) -> tuple[Sections, Sections]:
+    """The clip coded against the shared model, and with its own model (its single file's sections and the
+    flag section ``own``); both with the correction layer."""
+    return _coder(p, model, shared)[0](p.motion, **options), {**ENCODE(p.motion, **options), OWN: b""}
 
 
 def _size(sections: Sections) -> int:
@@ -177,9 +177,12 @@ def encode_into(shared: Mapping[str, bytes], motions: list[AnyMotion], options: 
     correction layer)."""
     out = []
     for m in motions:
+        if "m" not in shared:  # the group keeps no model (its clips' own were smaller)
+            out.append({**ENCODE(m, **options), OWN: b""})
+            continue
         p = _prepare(m, options)  # type: ignore[arg-type]
         model = SharedModel.from_sections(shared, inner_joints(m.skeleton))  # type: ignore[union-attr]
-        out.append(_smaller(p, model, shared, options))
+        out.append(min(_both(p, model, shared, options), key=_size))
     return out
 
 
@@ -189,7 +192,11 @@ def encode_group(motions: list[AnyMotion], options: dict[str, Any]
     preps = [_prepare(m, options) for m in motions]  # type: ignore[arg-type]
     model = fit_shared(preps, options)
     shared = model.sections()
-    own = [_smaller(p, model, shared, options) for p in preps]
+    pairs = [_both(p, model, shared, options) for p in preps]
+    own = [min(pair, key=_size) for pair in pairs]
+    if sum(map(_size, own)) + _size(shared) >= sum(_size(pair[1]) for pair in pairs):
+        # the model is worth less than it costs: no shared model, every clip with its own
+        return {}, [pair[1] for pair in pairs], {"geodesics": None, "bits": None}
     return shared, own, {"geodesics": model.k, "bits": model.basis_bits}
 
 
