@@ -38,7 +38,7 @@ from mocapz.codecs.patterns.quantise import decode_patterns
 from mocapz.codecs.patterns.rate import search
 from mocapz.codecs.patterns.skeletal import skeleton_addh
 from mocapz.codecs.target import ErrorMetric, Target
-from mocapz.errors import FormatError
+from mocapz.errors import FormatError, TargetError
 from mocapz.format.entropy import pack_uint64, unpack_uint64
 from mocapz.model.header import ClipHeader
 from mocapz.model.motion import AnyMotion, MarkerMotion
@@ -153,20 +153,32 @@ def encode_group(motions: list[AnyMotion], options: dict[str, Any]
         coded = search("library", motions, settings, targets, fixed, groups[0].prep.addh, run, check)
     else:
         coded = code_groups(motions, groups, settings)[0]
-    own = []
+    own, alone = [], []
     for m, clip in zip(motions, coded.clips, strict=True):
         def base(motion: AnyMotion, clip: dict[str, bytes] = clip, **o: Any) -> dict[str, bytes]:
             return dict(clip)
 
         own.append(corrected(base, _decoder(coded.shared), "patterns", OPTIONS)[0](m, **options))
+        if not given_settings(options, OPTIONS):  # the correction alone: what the clip costs without databases
+            alone.append(corrected(_no_base, _decoder({}), "patterns", OPTIONS)[0](m, **options))
     shared = coded.shared
-    if all(k.startswith("c.") for sections in own for k in sections):
-        shared = {}  # every clip is coded by its correction alone (smaller): the databases serve no clip
+    if alone and _size(alone) <= _size(own) + _size([shared]):
+        # the databases cost more than they save (each clip decides for its own base, not for the databases):
+        # every clip coded by its correction alone, no databases stored
+        shared, own = {}, alone
     info = {"kind": motions[0].kind, "nodes": len(coded.node_names), "node_names": coded.node_names,
             "segments": coded.segments, "clusters": coded.clusters,
             "settings": {"theta": settings.theta, "ratio": settings.ratio, "tolerance": settings.tol,
                          "bits": settings.bits, "heading": settings.heading}}
     return shared, own, info
+
+
+def _no_base(motion: AnyMotion, **options: Any) -> dict[str, bytes]:
+    raise TargetError("no base: the correction alone")
+
+
+def _size(clips: list[dict[str, bytes]]) -> int:
+    return sum(len(k) + 2 + len(v) for sections in clips for k, v in sections.items())
 
 
 def _decoder(shared: Mapping[str, bytes]) -> Callable[[dict[str, bytes], ClipHeader], AnyMotion]:
