@@ -19,6 +19,14 @@ pin_openblas_kernels()  # before NumPy is imported: the same bytes on every x86-
 from mocapz.api import compress, decompress  # noqa: E402
 from mocapz.errors import FormatError, MocapzError, OptionError, TargetError  # noqa: E402
 from mocapz.io import load, save  # noqa: E402
+from mocapz.libraries import (  # noqa: E402
+    append_library,
+    compress_library,
+    extract_clip,
+    list_clips,
+    read_clip,
+    verify_library,
+)
 from mocapz.metrics.figures import evaluate  # noqa: E402
 from mocapz.model.motion import MarkerMotion, Motion  # noqa: E402
 from mocapz.model.skeleton import Skeleton  # noqa: E402
@@ -26,5 +34,6 @@ from mocapz.stream import StreamDecoder, StreamEncoder  # noqa: E402
 
 __all__ = [
     "FormatError", "MarkerMotion", "MocapzError", "Motion", "OptionError", "Skeleton", "StreamDecoder",
-    "StreamEncoder", "TargetError", "__version__", "compress", "decompress", "evaluate", "load", "save",
+    "StreamEncoder", "TargetError", "__version__", "append_library", "compress", "compress_library", "decompress",
+    "evaluate", "extract_clip", "list_clips", "load", "read_clip", "save", "verify_library",
 ]

@@ -1,7 +1,8 @@
-"""``mocapz compress-db INPUT... -o LIBRARY.mczdb``: many clips into one pattern library.
+"""``mocapz compress-db INPUT... -o LIBRARY.mczdb [--codec pga|patterns|quant] [--append]``: many clips in one library.
 
-Registered in :mod:`mocapz.cli.main` with ``cli.add_command(compress_db)``. One clip is read back with
-``mocapz decompress LIBRARY.mczdb --clip NAME -o OUT`` and the clips are listed by ``mocapz info``.
+Registered in :mod:`mocapz.cli.main` with ``cli.add_command(compress_db)`` (and ``verify``). One clip (or a
+frame range of it) is read back with ``mocapz decompress LIBRARY.mczdb --clip NAME [--frames A:B] -o OUT``,
+the clips are listed by ``mocapz info`` and checked by ``mocapz verify LIBRARY.mczdb``.
 """
 
 from __future__ import annotations
@@ -35,49 +36,68 @@ def _weights(pairs: tuple[str, ...], weights_file: str | None) -> Any:
 
 
 class LibraryCommand(CodecCommand):
-    """compress-db: its help lists the pattern codec's options (the only codec with a library mode)."""
+    """compress-db: its help lists the options of the ``--codec`` given (patterns by default)."""
 
     def parse_args(self, ctx: click.Context, args: list[str]) -> list[str]:
         ctx.meta["mocapz.codec"] = "patterns"
-        return click.Command.parse_args(self, ctx, args)
+        return super().parse_args(ctx, args)
 
 
 @click.command(name="compress-db", cls=LibraryCommand)
 @click.argument("inputs", nargs=-1, required=True, type=click.Path(path_type=Path))
 @click.option("-o", "--output", type=click.Path(path_type=Path), required=True, help="output LIBRARY.mczdb")
 @click.option("-f", "--force", is_flag=True, help="overwrite an existing output")
+@click.option("--append", is_flag=True, help="add the clips to the existing LIBRARY.mczdb (its clips keep their "
+                                              "bytes; its codec is used)")
 @click.option("--json", "as_json", is_flag=True, help="print one JSON object")
-@click.option("--weight", "weight_pairs", multiple=True, help="marker weight LABEL=VALUE (repeatable)")
+@click.option("--weight", "weight_pairs", multiple=True, help="marker weight LABEL=VALUE (repeatable; patterns)")
 @click.option("-j", "--jobs", type=click.IntRange(min=1), default=1, show_default=True,
               help="worker processes reading the clips")
 @click.option("--scheduler", default=None, metavar="ADDRESS",
               help="read the clips on a Dask cluster (tcp://host:8786, or 'local')")
-@click.option("--codec", default="patterns", show_default=True, help="the codec (only patterns has a library mode)")
-@codec_flags("patterns")
-def compress_db(inputs: tuple[Path, ...], output: Path, force: bool, as_json: bool, weight_pairs: tuple[str, ...],
-                jobs: int, scheduler: str | None, codec: str, **codec_options: Any) -> None:
-    """Compress INPUT files (.bvh, .amc, .c3d, .trc) or folders of them into one .mczdb library with shared
-    pattern databases. Clips are read in parallel (--jobs / --scheduler); the databases are built over all
-    of them. A clip that cannot be read is reported and left out (exit code 1)."""
+@click.option("--codec", default=None, help="pga, patterns or quant  [default: patterns; with --append the "
+                                            "library's]")
+@codec_flags()
+def compress_db(inputs: tuple[Path, ...], output: Path, force: bool, append: bool, as_json: bool,
+                weight_pairs: tuple[str, ...], jobs: int, scheduler: str | None, codec: str | None,
+                **codec_options: Any) -> None:
+    """Compress INPUT files (.bvh, .amc, .c3d, .trc) or folders of them into one .mczdb library: clips with the
+    same skeleton store it once, pga shares one pose model per skeleton, patterns its pattern databases; every
+    clip meets the target as when compressed alone. With --append the clips are added to LIBRARY.mczdb (the
+    clips in it keep their bytes). Clips are read in parallel (--jobs / --scheduler). A clip that cannot be
+    read is reported and left out (exit code 1)."""
     import sys
 
     from mocapz.errors import MocapzError
+    from mocapz.format.library import read_library
     from mocapz.io.common import atomic_write
-    from mocapz.libraries import compress_library
+    from mocapz.libraries import append_library, compress_library, library_mode
     from mocapz.parallel.discover import discover
     from mocapz.parallel.load import load_many
 
-    if get_codec(codec).name != "patterns":
-        raise OptionError(f"compress-db: the {codec} codec has no library mode (only patterns has)")
     if output.suffix.lower() != ".mczdb":
         raise OptionError(f"{output}: a library file must end in .mczdb")
+    old = b""
+    if append:
+        if force:
+            raise OptionError("--append adds to the library: -f would overwrite it (give one of them)")
+        lib, old = read_library(output)  # checked before any input is read
+        have = str(lib.index.get("codec"))
+        if codec is not None and get_codec(codec).name != have:
+            raise OptionError(f"{output}: a {have} library (--append takes its codec; got --codec {codec})")
+        codec = have
+    codec = get_codec(codec or "patterns").name
+    library_mode(codec)  # a codec without a library mode: exit code 2
     w = _weights(weight_pairs, codec_options.pop("weights", None))
-    options = get_codec("patterns").validate({**given(codec_options), "weights": w})
+    options = given(codec_options)
+    if w is not None:
+        options["weights"] = w
+    options = get_codec(codec).validate(options)
     paths: list[Path] = []
     for p in inputs:
         paths += discover(p) if p.is_dir() else [p]
-    if output.exists() and not force:
-        raise MocapzError(f"{output}: output exists (use -f to overwrite)")
+    if output.exists() and not force and not append:
+        raise MocapzError(f"{output}: output exists (use -f to overwrite, or --append to add clips)")
     motions, failed = [], 0
     say = Say(quiet=as_json)
     with say.progress(f"compress-db: reading {len(paths)} clips", total=len(paths)) as advance:
@@ -92,18 +112,47 @@ def compress_db(inputs: tuple[Path, ...], output: Path, force: bool, as_json: bo
         raise MocapzError("no clip could be read")
     t0 = time.perf_counter()
     frames = sum(m.n_frames for m in motions)
-    with say.progress(f"compress-db: {len(motions)} clips, {frames} frames: pattern databases and encoding"):
-        data = compress_library(motions, **options)
+    with say.progress(f"compress-db: {len(motions)} clips, {frames} frames, {codec} library mode"):
+        data = append_library(old, motions, output, **options) if append else compress_library(motions, codec,
+                                                                                               **options)
     elapsed = time.perf_counter() - t0
-    atomic_write(output, lambda tmp: tmp.write_bytes(data), force=force)
+    # written to a temporary file renamed into place: a failure leaves the old library as it was
+    atomic_write(output, lambda tmp: tmp.write_bytes(data), force=force or append)
     raw = sum(m.raw_bytes for m in motions)
-    info = {"output": str(output), "clips": [m.name for m in motions], "frames": sum(m.n_frames for m in motions),
-            "raw_bytes": raw, "compressed_bytes": len(data), "ratio": raw / len(data),
-            "encode_s": elapsed}
+    info = {"output": str(output), "codec": codec, "clips": [m.name for m in motions], "frames": frames,
+            "raw_bytes": raw, "compressed_bytes": len(data) - len(old), "library_bytes": len(data),
+            "ratio": raw / max(len(data) - len(old), 1), "encode_s": elapsed}
     if as_json:
         click.echo(json.dumps(info))
     else:
-        click.echo(f"{len(motions)} clips -> {output}: {len(data)} bytes, ratio {raw / len(data):.4g}, "
-                   f"{elapsed:.2f} s" + (f"; {failed} clip(s) failed" if failed else ""), err=True)
+        what = f"added to {output} ({len(data)} bytes)" if append else f"-> {output}: {len(data)} bytes"
+        click.echo(f"{len(motions)} clips {what}, ratio {info['ratio']:.4g}, {elapsed:.2f} s"
+                   + (f"; {failed} clip(s) failed" if failed else ""), err=True)
     if failed:
+        sys.exit(1)
+
+
+@click.command(name="verify")
+@click.argument("library", type=click.Path(path_type=Path))
+@click.option("--decode", is_flag=True, help="decode every clip too")
+@click.option("--json", "as_json", is_flag=True, help="print one JSON object")
+def verify(library: Path, decode: bool, as_json: bool) -> None:
+    """Check a .mczdb library: the file's checksum and every clip's (exit code 1 if a clip is damaged)."""
+    import sys
+
+    from mocapz.errors import FormatError
+    from mocapz.libraries import verify_library
+
+    if not library.is_file():
+        raise FormatError(library, "no such file")
+    report = verify_library(library.read_bytes(), library, decode=decode)
+    if as_json:
+        click.echo(json.dumps(report))
+    else:
+        for c in report["clips"]:
+            state = "ok" if c["ok"] else "DAMAGED (" + ", ".join(c["damaged"] or [c.get("error", "")]) + ")"
+            click.echo(f"{c['name']}: {state}", err=True)
+        click.echo(f"{library}: {'ok' if report['ok'] else 'damaged'} ({len(report['clips'])} clips, file "
+                   f"checksum {'ok' if report['file_checksum'] else 'mismatch'})", err=True)
+    if not report["ok"]:
         sys.exit(1)

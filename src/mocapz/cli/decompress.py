@@ -74,9 +74,13 @@ def _one(path: Path, root: Path | None, output: Path | None, many: bool, fmt_nam
     from mocapz.io import save
 
     name = STDIN_NAME if str(path) == "-" else str(path)
-    data = click.get_binary_stream("stdin").read() if str(path) == "-" else read_bytes(path)
+    library = path.suffix.lower() == LIBRARY_SUFFIX or clip is not None
+    if str(path) == "-":
+        data = click.get_binary_stream("stdin").read()
+    else:  # a library file is not read whole: only the clip's sections are
+        data = b"" if library and path.is_file() and clip is not None else read_bytes(path)
     t0 = time.perf_counter()
-    if path.suffix.lower() == LIBRARY_SUFFIX or clip is not None:
+    if library:
         motion = _library_clip(data, path, clip)
     else:
         _, header = read_container(data, name)
@@ -140,10 +144,12 @@ def _output_for(path: Path, root: Path | None, output: Path | None, many: bool, 
 
 def _library_clip(data: bytes, path: Path, clip: str | None) -> Any:
     from mocapz.format.library import Library
-    from mocapz.libraries import read_clip
+    from mocapz.libraries import extract_clip, read_clip
 
     if clip is None:
         names = Library.from_bytes(data, path).clip_names()
         raise OptionError(f"{path}: a library holds several clips; choose one with --clip "
                           f"({', '.join(names[:10])}{', ...' if len(names) > 10 else ''})")
+    if not data and clip is not None:  # only the clip's sections are read (and checked)
+        return extract_clip(path, clip)
     return read_clip(data, clip, path)

@@ -27,12 +27,12 @@ def _register_commands() -> None:
     """Commands, one module each."""
     from mocapz.cli.bench import bench
     from mocapz.cli.compress import compress
-    from mocapz.cli.db import compress_db
+    from mocapz.cli.db import compress_db, verify
     from mocapz.cli.decompress import decompress
     from mocapz.cli.inspect_cmds import eval_cmd, info
     from mocapz.cli.view import view
 
-    for command in (compress, decompress, info, eval_cmd, view, bench, compress_db):
+    for command in (compress, decompress, info, eval_cmd, view, bench, compress_db, verify):
         cli.add_command(command)
 
 

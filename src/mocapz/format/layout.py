@@ -129,10 +129,73 @@ def encode_layout(motion: AnyMotion) -> bytes:
     offsets leave the JSON (``"offsets": null``, ``"num_dec": q``) and follow as zig-zag varints of
     ``round(value * 10**q)``, joints then end sites, x y z each: a zero costs one byte.
     """
-    d = layout_dict(motion)
+    return _pack(layout_dict(motion), motion.skeleton if isinstance(motion, Motion) else None)
+
+
+#: the layout fields a skeleton holds (those a library stores once per skeleton, :func:`encode_skeleton`)
+SKELETON_FIELDS = ("names", "parents", "channels", "orders", "offsets", "end_sites", "angle_unit", "unit_cm",
+                   "unit_note", "axis", "extra")
+SHARED = "shared"  # the ``"skeleton"`` field of a member layout whose skeleton is stored apart
+
+
+def encode_skeleton(sk: Skeleton) -> bytes:
+    """A skeleton alone, packed like a layout (``"kind": "skeleton"`` and the :data:`SKELETON_FIELDS`):
+    a library stores it once for the clips that share it (:func:`encode_member_layout`)."""
+    return _pack({"kind": "skeleton", **skeleton_to_dict(sk)}, sk)
+
+
+def encode_member_layout(motion: AnyMotion) -> bytes:
+    """The layout of a library clip whose skeleton is stored apart (:func:`encode_skeleton`): every field but
+    the skeleton's, and ``"skeleton": "shared"``. A marker clip's layout is :func:`encode_layout`'s."""
+    if not isinstance(motion, Motion):
+        return encode_layout(motion)
+    d = {k: v for k, v in layout_dict(motion).items() if k not in SKELETON_FIELDS}
+    d["skeleton"] = SHARED
+    return _pack(d, None)
+
+
+def decode_member_header(data: bytes, skeleton: bytes | None) -> ClipHeader:
+    """The header of a library clip: its layout (:func:`encode_member_layout`) joined with the skeleton it
+    refers to (:func:`encode_skeleton`); a complete layout (``skeleton`` None) as :func:`decode_header`."""
+    if skeleton is None:
+        return decode_header(data)
+    d = _unpack(data)
+    if d.get("kind") != "skeleton" or d.pop("skeleton", None) != SHARED or any(k in d for k in SKELETON_FIELDS):
+        raise FormatError(None, "corrupted layout header (not a library clip's layout)")
+    sk = _skeleton_dict(skeleton)
+    if d.pop("_block"):
+        raise FormatError(None, "corrupted layout header (trailing bytes)")
+    merged = {**d, **sk}
+    check_layout(merged)
+    return header_from_layout(merged)
+
+
+def _skeleton_dict(data: bytes) -> dict[str, Any]:
+    sk = _unpack(data)
+    if sk.pop("kind", None) != "skeleton" or "num_dec" not in sk and "offsets" not in sk:
+        raise FormatError(None, "corrupted skeleton layout")
+    if "num_dec" in sk:
+        _unpack_offsets(sk, sk.pop("_block"))
+    elif sk.pop("_block"):
+        raise FormatError(None, "corrupted skeleton layout (trailing bytes)")
+    return sk
+
+
+def decode_skeleton(data: bytes) -> Skeleton:
+    """Inverse of :func:`encode_skeleton` (checked as a layout of no frames)."""
+    d = {"kind": "skeleton", "frames": 0, "frame_rate": 1.0, "name": "", "source_format": "bvh",
+         **_skeleton_dict(data)}
+    check_layout(d)
+    try:
+        return skeleton_from_dict(d)
+    except (KeyError, TypeError, ValueError, OverflowError) as exc:
+        raise FormatError(None, f"corrupted skeleton layout ({exc})") from None
+
+
+def _pack(d: dict[str, Any], sk: Skeleton | None) -> bytes:
+    """``d`` as zstd JSON, the skeleton's offsets (when given and decimal) as a numeric block after it."""
     block = b""
-    if isinstance(motion, Motion):
-        sk = motion.skeleton
+    if sk is not None:
         nums = np.concatenate([sk.offsets.ravel()] + [np.asarray(o, dtype=np.float64) for _, o, _ in sk.end_sites])
         dec = detect_decimals(nums[:, None]) if nums.size else np.zeros(1, dtype=np.int64)
         if dec is not None and int(dec[0]) <= 9:
@@ -146,6 +209,25 @@ def encode_layout(motion: AnyMotion) -> bytes:
     z = zstandard.ZstdCompressor(level=19, dict_data=_DICT, write_checksum=False,
                                  write_content_size=True, write_dict_id=False).compress(text)
     return write_uvarint(len(z)) + z + block
+
+
+def _unpack(data: bytes) -> dict[str, Any]:
+    """The JSON object of packed layout bytes, with its numeric block as ``"_block"`` (unchecked)."""
+    n, pos = read_uvarint(data, 0)
+    z, block = data[pos : pos + n], data[pos + n :]
+    if len(z) != n:
+        raise FormatError(None, "truncated layout header")
+    try:
+        size = zstandard.get_frame_parameters(z).content_size
+        if size == zstandard.CONTENTSIZE_UNKNOWN or size > 1 << 26:
+            raise FormatError(None, "corrupted layout header (implausible size)")
+        d = json.loads(zstandard.ZstdDecompressor(dict_data=_DICT).decompress(z, max_output_size=1 << 26))
+    except (zstandard.ZstdError, ValueError, UnicodeDecodeError) as exc:
+        raise FormatError(None, f"corrupted layout header ({exc})") from None
+    if not isinstance(d, dict):
+        raise FormatError(None, "corrupted layout header (not an object)")
+    d["_block"] = bytes(block)
+    return d
 
 
 def decode_layout(data: bytes) -> dict[str, Any]:

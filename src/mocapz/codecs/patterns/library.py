@@ -9,8 +9,11 @@ without decoding any other clip.
 
 A group's shared sections are ``h`` (hierarchy with names), ``d<k>`` (pattern database of node ``k``) and
 ``u<k>`` (its usage counts, prior of the clips' index coders); a clip's own sections are those of a
-single-clip stream (``p``, ``r``, ``g``, ``c``, ``s<k>``). The library file that stores them is
-:mod:`mocapz.format.library`; this module sees only sections and typed headers.
+single-clip stream (``p``, ``r``, ``g``, ``c``, ``s<k>``) plus the correction layer's ``c.*``
+(:func:`encode_group`: every clip meets its target as when compressed alone). Libraries written before the
+correction (format version 1) decode as they were. The databases depend on every clip of the group, so clips
+appended later form a group of their own (:data:`MODE` has no ``encode_into``). The library file that stores
+them is :mod:`mocapz.format.library`; this module sees only sections and typed headers.
 """
 
 from __future__ import annotations
@@ -21,18 +24,21 @@ from typing import Any
 
 import numpy as np
 
+from mocapz.codecs.correction.wrap import corrected, given_settings, native_targets
+from mocapz.codecs.library import LibraryMode
+from mocapz.codecs.patterns import VERSION
 from mocapz.codecs.patterns.bodies import code_clips
 from mocapz.codecs.patterns.decode import decode_clip, members_of
 from mocapz.codecs.patterns.encode import target_from
 from mocapz.codecs.patterns.hierarchy import Hierarchy
-from mocapz.codecs.patterns.options import settings_from
+from mocapz.codecs.patterns.options import OPTIONS, settings_from
 from mocapz.codecs.patterns.pipeline import Settings
 from mocapz.codecs.patterns.prepare import Prepared, marker_addh, prepare
 from mocapz.codecs.patterns.quantise import decode_patterns
 from mocapz.codecs.patterns.rate import search
 from mocapz.codecs.patterns.skeletal import skeleton_addh
-from mocapz.codecs.target import ErrorMetric
-from mocapz.errors import FormatError
+from mocapz.codecs.target import ErrorMetric, Target
+from mocapz.errors import FormatError, TargetError
 from mocapz.format.entropy import pack_uint64, unpack_uint64
 from mocapz.model.header import ClipHeader
 from mocapz.model.motion import AnyMotion, MarkerMotion
@@ -66,12 +72,6 @@ class CodedGroup:
     node_names: list[str]
     segments: int
     clusters: int
-
-
-#: ``(coded groups, settings) -> library bytes``: how the caller stores a coded library
-Writer = Callable[[list[CodedGroup], Settings], bytes]
-#: ``(library bytes, clip index) -> decoded clip``: how the caller reads one clip back
-Reader = Callable[[bytes, int], AnyMotion]
 
 
 def group_key(motion: AnyMotion) -> tuple:
@@ -117,42 +117,77 @@ def code_groups(motions: list[AnyMotion], groups: list[Group], settings: Setting
     return out
 
 
-def encode_library(motions: list[AnyMotion], options: dict[str, Any], write: Writer, read: Reader) -> bytes:
-    """Code clips into a library with shared databases; with a target, search the settings.
+def encode_group(motions: list[AnyMotion], options: dict[str, Any]
+                 ) -> tuple[dict[str, bytes], list[dict[str, bytes]], dict[str, Any]]:
+    """Code one group of clips (same layout) with shared databases, then each clip's correction.
 
-    Args:
-        motions: the clips (each with frames).
-        options: checked pattern options (:mod:`.options`); a target (``max_arms`` / ``max_distortion``)
-            must hold for every clip, each in its own length unit.
-        write: stores coded groups as library bytes.
-        read: decodes one clip from those bytes (the chosen setting is checked by really decoding).
+    As for a single clip (:mod:`mocapz.codecs.patterns`), the databases are coded with the settings as
+    given (or the defaults) and the correction layer meets the targets; when the user fixed a setting and
+    gives a distortion / ARMS target, the settings are searched first so that the databases alone meet it
+    on every clip (each in its own length unit), checked by really decoding.
+
+    Returns the group's shared sections, per clip its own sections, and the group's index entry.
     """
     for m in motions:
         if m.n_frames == 0:
             raise FormatError(m.metadata.get("path", m.name), "clip has no frames")
     settings = settings_from(options)
     groups = groups_of(motions, options)
-    targets = [t for t in (target_from(m, options) for m in motions) if t is not None]
+    if len(groups) != 1:
+        raise ValueError("encode_group takes clips of one layout")
+    native = native_targets(motions[0], options, Target()) if given_settings(options, OPTIONS) else {}
+    targets = [t for t in (target_from(m, native) for m in motions) if t is not None]
+    if targets:
+        headers = [ClipHeader.of(m) for m in motions]
 
-    def run(s: Settings) -> tuple[list[np.ndarray], bytes, int]:
-        coded = code_groups(motions, groups, s)
-        decoded: list[np.ndarray] = [np.zeros(0)] * len(motions)
-        for cg in coded:
-            for i, d in zip(cg.members, cg.decoded, strict=True):
-                decoded[i] = d
-        data = write(coded, s)
-        return decoded, data, len(data)
+        def run(s: Settings) -> tuple[list[np.ndarray], CodedGroup, int]:
+            cg = code_groups(motions, groups, s)[0]
+            return cg.decoded, cg, sum(len(v) for v in cg.shared.values()) + \
+                sum(len(v) for own in cg.clips for v in own.values())
 
-    if not targets:  # a target is given for every clip or for none
-        return run(settings)[1]
-    fixed = {k for k in ("tolerance", "bits") if options.get(k) is not None}
+        def check(cg: CodedGroup) -> float:
+            return max(t.score(ErrorMetric(m).of_motion(decode_member(h, cg.shared, own)))
+                       for t, m, h, own in zip(targets, motions, headers, cg.clips, strict=True))
 
-    def check(data: bytes) -> float:
-        return max(t.score(ErrorMetric(m).of_motion(read(data, i)))
-                   for i, (t, m) in enumerate(zip(targets, motions, strict=True)))
+        fixed = {k for k in ("tolerance", "bits") if options.get(k) is not None}
+        coded = search("library", motions, settings, targets, fixed, groups[0].prep.addh, run, check)
+    else:
+        coded = code_groups(motions, groups, settings)[0]
+    own, alone = [], []
+    for m, clip in zip(motions, coded.clips, strict=True):
+        def base(motion: AnyMotion, clip: dict[str, bytes] = clip, **o: Any) -> dict[str, bytes]:
+            return dict(clip)
 
-    addh = float(np.mean([g.prep.addh for g in groups]))
-    return search("library", motions, settings, targets, fixed, addh, run, check)
+        own.append(corrected(base, _decoder(coded.shared), "patterns", OPTIONS)[0](m, **options))
+        if not given_settings(options, OPTIONS):  # the correction alone: what the clip costs without databases
+            alone.append(corrected(_no_base, _decoder({}), "patterns", OPTIONS)[0](m, **options))
+    shared = coded.shared
+    if alone and _size(alone) <= _size(own) + _size([shared]):
+        # the databases cost more than they save (each clip decides for its own base, not for the databases):
+        # every clip coded by its correction alone, no databases stored
+        shared, own = {}, alone
+    info = {"kind": motions[0].kind, "nodes": len(coded.node_names), "node_names": coded.node_names,
+            "segments": coded.segments, "clusters": coded.clusters,
+            "settings": {"theta": settings.theta, "ratio": settings.ratio, "tolerance": settings.tol,
+                         "bits": settings.bits, "heading": settings.heading}}
+    return shared, own, info
+
+
+def _no_base(motion: AnyMotion, **options: Any) -> dict[str, bytes]:
+    raise TargetError("no base: the correction alone")
+
+
+def _size(clips: list[dict[str, bytes]]) -> int:
+    return sum(len(k) + 2 + len(v) for sections in clips for k, v in sections.items())
+
+
+def _decoder(shared: Mapping[str, bytes]) -> Callable[[dict[str, bytes], ClipHeader], AnyMotion]:
+    return lambda own, header: decode_member(header, shared, own)
+
+
+def decode_corrected(shared: Mapping[str, bytes], own: dict[str, bytes], header: ClipHeader) -> AnyMotion:
+    """One clip of a library from its group's databases and its own sections (correction applied)."""
+    return corrected(lambda motion, **o: {}, _decoder(shared), "patterns", OPTIONS)[1](own, header)
 
 
 def decode_member(header: ClipHeader, shared: Mapping[str, bytes], own: dict[str, bytes]) -> AnyMotion:
@@ -166,3 +201,6 @@ def decode_member(header: ClipHeader, shared: Mapping[str, bytes], own: dict[str
         dbs[k] = decode_patterns(shared[f"d{k}"])[0]
         priors[k] = unpack_uint64(shared[f"u{k}"], len(dbs[k])).astype(np.int64)
     return decode_clip(header, hier, own, dbs, priors)
+
+
+MODE = LibraryMode("patterns", VERSION, encode_group, None, decode_corrected, group_key)

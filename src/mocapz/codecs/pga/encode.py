@@ -35,6 +35,8 @@ class Prepared:
     eff_local: np.ndarray  # (F, e, 3) in the root frame
     full_model: PGAModel
     ref_cache: dict[int, np.ndarray] = field(default_factory=dict)  # original positions, for rate control
+    shared: tuple[np.ndarray, PGAModel] | None = None  # a library's quantised model (integers, model) to code
+    # against instead of quantising ``full_model`` (its k, basis bits and mean step are the settings')
 
 
 def prepare(motion: Motion, effectors: list[int] | None = None, outliers: list[int] | None = None) -> Prepared:
@@ -61,7 +63,10 @@ def encode_prepared(p: Prepared, s: PGASettings) -> dict[str, bytes]:
     n = len(p.kept)
     if n:
         s.validate(p.full_model.basis.shape[0], n)
-        ints, model_q = quantise_model(p.full_model, s.k, s.basis_bits, s.mean_step)
+        if p.shared is None:
+            ints, model_q = quantise_model(p.full_model, s.k, s.basis_bits, s.mean_step)
+        else:
+            ints, model_q = p.shared
         inner = model_q.joints
         mats = model_matrices(ints, len(model_q.joints), s.k)
         mats.append(lifting.encode_rn(p.clip.root_pos, s.pos_step, s.lod_root)[0])
