@@ -231,19 +231,9 @@ def _unpack(data: bytes) -> dict[str, Any]:
 
 
 def decode_layout(data: bytes) -> dict[str, Any]:
-    n, pos = read_uvarint(data, 0)
-    z, block = data[pos : pos + n], data[pos + n :]
-    if len(z) != n:
-        raise FormatError(None, "truncated layout header")
-    try:
-        size = zstandard.get_frame_parameters(z).content_size
-        if size == zstandard.CONTENTSIZE_UNKNOWN or size > 1 << 26:
-            raise FormatError(None, "corrupted layout header (implausible size)")
-        text = zstandard.ZstdDecompressor(dict_data=_DICT).decompress(z, max_output_size=1 << 26)
-        d = json.loads(text)
-    except (zstandard.ZstdError, ValueError, UnicodeDecodeError) as exc:
-        raise FormatError(None, f"corrupted layout header ({exc})") from None
-    if not isinstance(d, dict) or d.get("kind") not in ("skeleton", "markers"):
+    d = _unpack(data)
+    block = d.pop("_block")
+    if d.get("kind") not in ("skeleton", "markers"):
         raise FormatError(None, "corrupted layout header (unknown kind)")
     if d["kind"] == "skeleton" and "num_dec" in d:
         _unpack_offsets(d, block)
