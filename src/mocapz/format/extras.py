@@ -59,8 +59,8 @@ def encode_extras(extras: C3DExtras, precision: ExtrasPrecision | None = None,
     fmt = (extras.is_float, extras.processor)
     steps: tuple[np.ndarray | None, np.ndarray | None] = (None, None)
     if precision is not None:
-        extras, *rounded = quantised_extras(extras, precision)
-        steps = (rounded[0], rounded[1])
+        extras, ana_steps, trk_steps = quantised_extras(extras, precision)
+        steps = (ana_steps, trk_steps)
     info = {"processor": extras.processor, "float": extras.is_float, "scales": extras.scales.tolist(),
             "markers": extras.marker_index.tolist(), "tracks": extras.track_index.tolist(),
             "track_labels": extras.track_labels, "track_kinds": extras.track_kinds,

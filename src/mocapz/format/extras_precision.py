@@ -28,7 +28,7 @@ from __future__ import annotations
 
 import struct
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -166,8 +166,6 @@ def quantise_columns(words: np.ndarray, is_float: bool, processor: int, unit: np
 def quantised_extras(extras: C3DExtras, precision: ExtrasPrecision) -> tuple[C3DExtras, np.ndarray, np.ndarray]:
     """The extras with analog and track words rounded to ``precision``; and the steps of the analog columns
     ``(channels,)`` and of the track columns ``(tracks * 3,)`` (0: exact)."""
-    from dataclasses import replace
-
     fmt = (extras.is_float, extras.processor)
     f, t = extras.frames, extras.track_index.size
     ana_steps = np.zeros(extras.channels)
