@@ -33,3 +33,14 @@ def test_encoder_writes_the_golden_bytes(entry: dict) -> None:
     a, b = entry["frames"]
     data = mocapz.compress(source(entry["source"], a, b), codec=entry["codec"], **entry["options"])
     assert hashlib.sha256(data).hexdigest() == entry["sha256"], f"{entry['file']}: the encoder's bytes moved"
+
+
+FORMAT1 = json.loads((HERE / "format1" / "golden.json").read_text())
+
+
+@pytest.mark.parametrize("entry", FORMAT1, ids=[e["file"] for e in FORMAT1])
+def test_first_correction_format_still_decodes(entry: dict) -> None:
+    """Files written before the correction's shrink factor (``c.head`` format 1) decode to the same values."""
+    data = (HERE / "format1" / entry["file"]).read_bytes()
+    assert hashlib.sha256(data).hexdigest() == entry["sha256"]
+    assert values_hash(mocapz.decompress(data)) == entry["values_sha256"]

@@ -15,7 +15,7 @@ from mocapz import compress, decompress, evaluate
 from mocapz.cli.main import cli
 from mocapz.io import load
 from mocapz.metrics.contacts import Contacts, find_contacts
-from mocapz.metrics.skate import _full_windows, foot_skates, jitter_pct, window_steps
+from mocapz.metrics.skate import foot_skates, full_windows, jitter_pct, window_steps
 from mocapz.model.motion import MarkerMotion, Motion
 
 WALK = "cmu/bvh/02_01.bvh"  # 344 frames of walking at 120 fps
@@ -57,7 +57,7 @@ def _planted_walk(walk: Motion) -> tuple[np.ndarray, np.ndarray, Contacts]:
     assert np.array_equal(find_contacts(walk, a, valid, walk.skeleton.unit_cm).steps, con.steps)
     assert con.steps.all(axis=0).sum() == 0 and con.steps.any(axis=0).all()  # both feet planted, not always
     w = window_steps(walk.frame_rate)
-    assert any(_full_windows(con.steps[:, i], w).any() for i in range(con.feet.size))  # a planted 0.1 s
+    assert any(full_windows(con.steps[:, i], w).any() for i in range(con.feet.size))  # a planted 0.1 s
     return a, valid, con
 
 
@@ -72,12 +72,12 @@ def _run_offsets(con: Contacts, i: int, n_frames: int) -> np.ndarray:
     return off
 
 
-def test_window_steps_and_full_windows() -> None:
+def test_window_steps_andfull_windows() -> None:
     assert window_steps(120.0) == 12 and window_steps(30.0) == 3 and window_steps(5.0) == 1
     steps = np.array([1, 1, 1, 0, 1, 1, 1, 1, 0], dtype=bool)
     # windows of 3 steps from frames 0..6: only those from frames 0, 4 and 5 lie in planted steps
-    assert _full_windows(steps, 3).tolist() == [True, False, False, False, True, True, False]
-    assert _full_windows(steps, 1).tolist() == steps.tolist()
+    assert full_windows(steps, 3).tolist() == [True, False, False, False, True, True, False]
+    assert full_windows(steps, 1).tolist() == steps.tolist()
 
 
 def test_lossless_round_trip_gives_zero_skate_and_jitter(walk: Motion) -> None:

@@ -24,6 +24,7 @@ except ImportError:  # pragma: no cover
 
 CODER_RANGE = 1  # constriction range coder, quantized Laplace, block scales
 CODER_ZSTD = 2  # zstd on zig-zag byte planes
+CODER_RANGE_PACKED = 3  # as CODER_RANGE, its scale bytes zstd-packed (uvarint length first) when that is smaller
 
 LIMIT = (1 << 15) - 1  # |symbol| < LIMIT coded directly; LIMIT marks an escape
 BLOCK = 256  # rows per scale block
@@ -137,15 +138,37 @@ def unpack_uint64(buf: bytes, count: int | None = None, *, at_most: int = MAX_CO
 
 # ---------------------------------------------------------------- block scales
 def _block_scales(values: np.ndarray) -> np.ndarray:
-    """Quantised Laplace scale code ``(blocks, columns)`` uint8 from mean absolute values."""
+    """Quantised Laplace scale code ``(blocks, columns)`` uint8: per block and column, the code (near the one
+    of the mean absolute value) under which the block's values cost the fewest bits. Sparse columns (mostly
+    zeros, a few larger values) cost less with a wider scale than their mean suggests."""
     rows, cols = values.shape
     nb = max(1, -(-rows // BLOCK))
     q = np.zeros((nb, cols), dtype=np.uint8)
     for b in range(nb):
         blk = np.abs(values[b * BLOCK : (b + 1) * BLOCK]).astype(np.float64)
         m = np.maximum(blk.mean(axis=0) if blk.size else np.zeros(cols), 2.0**-6)
-        q[b] = np.clip(np.round(np.log2(m) * SCALE_STEPS) + 64, 0, 255).astype(np.uint8)
+        guess = np.round(np.log2(m) * SCALE_STEPS) + 64
+        if not blk.size:
+            q[b] = np.clip(guess, 0, 255).astype(np.uint8)
+            continue
+        best, best_cost = guess, np.full(cols, np.inf)
+        for d in range(-SCALE_STEPS, 3 * SCALE_STEPS + 1, 2):
+            code = np.clip(guess + d, 0, 255)
+            cost = _laplace_bits(blk, 2.0 ** ((code - 64.0) / SCALE_STEPS))
+            better = cost < best_cost
+            best, best_cost = np.where(better, code, best), np.where(better, cost, best_cost)
+        q[b] = best.astype(np.uint8)
     return q
+
+
+def _laplace_bits(a: np.ndarray, scale: np.ndarray) -> np.ndarray:
+    """Bits ``(columns,)`` the absolute values ``a`` ``(rows, columns)`` cost under a quantised Laplace model of
+    scale ``scale`` ``(columns,)`` (each probability at least 2**-24, as the coder's)."""
+    s = scale[None, :]
+    zero = -np.expm1(-0.5 / s)
+    other = 0.5 * np.exp(-(np.maximum(a, 0.5) - 0.5) / s) * -np.expm1(-1.0 / s)
+    p = np.where(a == 0, zero, other)
+    return -np.log2(np.maximum(p, 2.0**-24)).sum(axis=0)
 
 
 def _scale_values(q: np.ndarray, rows: int) -> np.ndarray:
@@ -180,10 +203,10 @@ def encode_int_matrix(values: np.ndarray, coder: int | None = None) -> bytes:
     enc.encode(sym.ravel().astype(np.int32), model, np.zeros(v.size), _scale_values(q, rows))
     body = enc.get_compressed().tobytes()
     esc = pack_uint64(zigzag(escapes)) if escapes.size else b""
-    return (
-        bytes([CODER_RANGE]) + head + q.tobytes() + write_uvarint(len(esc)) + esc
-        + write_uvarint(len(body)) + body
-    )
+    scales = pack_uint64(q.ravel())
+    kind, scales = (CODER_RANGE_PACKED, write_uvarint(len(scales)) + scales) if len(scales) + 2 < q.size \
+        else (CODER_RANGE, q.tobytes())
+    return bytes([kind]) + head + scales + write_uvarint(len(esc)) + esc + write_uvarint(len(body)) + body
 
 
 def decode_int_matrix(data: bytes, shape: tuple[int, int] | None = None) -> np.ndarray:
@@ -205,17 +228,27 @@ def decode_int_matrix(data: bytes, shape: tuple[int, int] | None = None) -> np.n
     if coder == CODER_ZSTD:
         flat = unzigzag(unpack_uint64(bytes(buf[pos:]), rows * cols))
         return flat.reshape(cols, rows).T.copy()
-    if coder != CODER_RANGE:
+    if coder not in (CODER_RANGE, CODER_RANGE_PACKED):
         raise FormatError(None, f"unknown entropy coder id {coder}")
     if not HAVE_CONSTRICTION:
         raise FormatError(None, "this stream was written by the range coder; install 'constriction'")
     if rows * cols == 0:
         return np.zeros((rows, cols), dtype=np.int64)
     nb = max(1, -(-rows // BLOCK))
-    end = pos + nb * cols
-    if end > len(buf):
-        raise FormatError(None, "truncated integer stream (scales)")
-    q = np.frombuffer(bytes(buf[pos:end]), dtype=np.uint8).reshape(nb, cols)
+    if coder == CODER_RANGE_PACKED:
+        size, pos = read_uvarint(buf, pos)
+        end = pos + size
+        if end > len(buf):
+            raise FormatError(None, "truncated integer stream (scales)")
+        packed = unpack_uint64(bytes(buf[pos:end]), nb * cols)
+        if np.any(packed > 255):
+            raise FormatError(None, "corrupted integer stream (scales)")
+        q = packed.astype(np.uint8).reshape(nb, cols)
+    else:
+        end = pos + nb * cols
+        if end > len(buf):
+            raise FormatError(None, "truncated integer stream (scales)")
+        q = np.frombuffer(bytes(buf[pos:end]), dtype=np.uint8).reshape(nb, cols)
     n_esc, pos = read_uvarint(buf, end)
     esc_bytes = bytes(buf[pos : pos + n_esc])
     pos += n_esc

@@ -226,6 +226,8 @@ def decode_stepped(data: bytes, shape: tuple[int, int], is_float: bool, processo
     index, steps = np.zeros(n, dtype=np.int64), np.zeros(n)
     for i in range(n):
         index[i], pos = read_uvarint(data, pos)
+        if pos + 8 > len(data):  # an index's uvarint may take more than the one byte counted above
+            raise _bad("step table")
         (steps[i],) = struct.unpack_from("<d", data, pos)
         pos += 8
     if pos > len(data) or index.size != np.unique(index).size or (index >= cols).any() or not (

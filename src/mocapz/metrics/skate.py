@@ -29,13 +29,13 @@ def window_steps(frame_rate: float) -> int:
     return max(1, int(round(SKATE_WINDOW_S * frame_rate)))
 
 
-def _horizontal_speeds(p: np.ndarray, horiz: list[int], w: int, fps: float) -> np.ndarray:
+def horizontal_speeds(p: np.ndarray, horiz: list[int], w: int, fps: float) -> np.ndarray:
     """Horizontal speed over every window of ``w`` steps of one point's ``(frames, 3)`` positions:
     ``(frames - w,)`` in units per second."""
     return np.linalg.norm(p[w:][:, horiz] - p[:-w][:, horiz], axis=1) * (fps / w)
 
 
-def _full_windows(steps: np.ndarray, w: int) -> np.ndarray:
+def full_windows(steps: np.ndarray, w: int) -> np.ndarray:
     """``(frames - w,)`` True where the window of ``w`` steps from frame t lies wholly in planted steps.
 
     ``steps`` is ``(frames - 1,)`` bool (one foot's column of :attr:`Contacts.steps`).
@@ -61,10 +61,10 @@ def skate_difference(con: Contacts, a: np.ndarray, b: np.ndarray, fps: float, w:
         return None
     diffs = []
     for i, f in enumerate(con.feet):  # the two feet
-        full = _full_windows(con.steps[:, i], w)
+        full = full_windows(con.steps[:, i], w)
         if full.any():
-            sa = _horizontal_speeds(a[:, f], con.horizontal, w, fps)[full]
-            sb = _horizontal_speeds(b[:, f], con.horizontal, w, fps)[full]
+            sa = horizontal_speeds(a[:, f], con.horizontal, w, fps)[full]
+            sb = horizontal_speeds(b[:, f], con.horizontal, w, fps)[full]
             diffs.append(float(sb.mean() - sa.mean()))
     return float(np.mean(diffs)) if diffs else None
 

@@ -53,8 +53,10 @@ class Layout:
         return int(self.acts.shape[0])
 
 
-def layout(motion: AnyMotion, positions: np.ndarray) -> Layout:
-    """The layout of a clip from its original positions ``(frames, points, 3)`` (file units)."""
+def layout(motion: AnyMotion, positions: np.ndarray, levers: np.ndarray | None = None) -> Layout:
+    """The layout of a clip from its original positions ``(frames, points, 3)`` (file units); ``levers``
+    ``(joints,)``: how far a rotation error of each joint moves a point, per radian (default: the longest
+    distance from the joint to a point below it, i.e. errors that add up along the chain)."""
     if not isinstance(motion, Motion):
         m = motion.n_markers
         group = np.repeat(np.arange(m), 3)
@@ -68,6 +70,8 @@ def layout(motion: AnyMotion, positions: np.ndarray) -> Layout:
     for j in range(n_j):
         if below[j].any() and len(positions):
             lever[j] = float(np.linalg.norm(positions[:, below[j]] - positions[:, j : j + 1], axis=2).max())
+    if levers is not None:
+        lever = np.minimum(lever, levers)
     group = np.concatenate([np.full(len(chs), j) for j, chs in enumerate(sk.channels)]).astype(np.int64) \
         if sk.n_channels else np.zeros(0, dtype=np.int64)
     is_rot = np.array([c.endswith("rotation") for chs in sk.channels for c in chs], dtype=bool)
@@ -87,9 +91,9 @@ def layout(motion: AnyMotion, positions: np.ndarray) -> Layout:
     return Layout(group, acts, t_safe, moving)
 
 
-def safe_levels(lay: Layout, bound: np.ndarray, e_max: float) -> np.ndarray:
+def safe_levels(lay: Layout, bound: np.ndarray, e_max: float, relax: float = RELAX) -> np.ndarray:
     """``(frames, groups)`` levels at which the worst-case sum keeps every point ``p`` within
-    ``bound[t, p]``, for base tolerances ``RELAX * t_safe * e_max``."""
+    ``bound[t, p]``, for base tolerances ``relax * t_safe * e_max``."""
     frames = bound.shape[0]
     out = np.zeros((frames, lay.n_groups), dtype=np.int64)
     ratio = np.ones((frames, lay.n_groups))  # smallest bound / e_max over the points a group moves
@@ -97,7 +101,7 @@ def safe_levels(lay: Layout, bound: np.ndarray, e_max: float) -> np.ndarray:
         if lay.acts[g].any():
             ratio[:, g] = bound[:, lay.acts[g]].min(axis=1) / e_max
     with np.errstate(divide="ignore"):
-        lv = np.ceil(2.0 * np.log2(RELAX / np.maximum(ratio, 1e-12)) - 1e-9)
+        lv = np.ceil(2.0 * np.log2(relax / np.maximum(ratio, 1e-12)) - 1e-9)
     out[:] = np.clip(lv, 0, 60).astype(np.int64)
     return out
 
@@ -115,18 +119,22 @@ def groups_moving(lay: Layout, points: np.ndarray) -> np.ndarray:
     return (points.astype(np.float32) @ lay.acts.T.astype(np.float32)) > 0
 
 
-def tighten(levels: np.ndarray, cap: np.ndarray, lay: Layout, misses: np.ndarray, step: int = 1) -> bool:
+def tighten(levels: np.ndarray, cap: np.ndarray, lay: Layout, misses: np.ndarray, step: int = 1,
+            only: np.ndarray | None = None) -> bool:
     """Raise (in place) by ``step`` (at most to ``cap``) the level of every group acting on a point that misses
     its bound.
 
     Args:
         levels: ``(frames, groups)`` current levels; ``cap`` the safe levels, never exceeded.
         misses: ``(frames, points)`` True where the decoded point is farther than its bound.
+        only: ``(groups,)`` True on the groups that may be raised (default: all).
 
     Returns:
         False if nothing could be raised (every missing point's chain is already at its safe level).
     """
     raise_ = groups_moving(lay, misses) & (levels < cap)
+    if only is not None:
+        raise_ &= only[None, :]
     levels[raise_] = np.minimum(levels[raise_] + step, cap[raise_])
     return bool(raise_.any())
 

@@ -15,16 +15,18 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from mocapz.codecs.correction import bounds, context, lifting
+from mocapz.codecs.correction import bounds, context, feet, lifting
+from mocapz.codecs.correction.chain import Chain
 from mocapz.codecs.target import ErrorMetric, Errors, Target
 from mocapz.format.entropy import encode_int_matrix, pack_uint64
 from mocapz.metrics.contacts import find_contacts
 from mocapz.model.kinematics import forward_kinematics
 from mocapz.model.motion import AnyMotion, Motion
 
-FOOT_CM = 0.25  # bound on a planted foot (centimetres; 0.15 % of the body height when the unit is unknown)
-FOOT_RELAX = 0  # levels below the safe one on planted feet (0: the worst-case sum holds, no trembling)
- # bound on a planted foot (centimetres; 0.15 % of the body height when the unit is unknown)
+SKATE_CM_S = 0.3  # foot speed a planted foot may gain, frame to frame and over 0.1 s (cm/s; issue 11 allows 0.5)
+FOOT_CHAIN = 3  # joints above a foot tightened for its skate (the closed loop aims each at the original below it)
+FOOT_START = 2  # levels those joints start tighter than the others on planted frames
+SHRINK = 0.9  # tolerance factor per lifting level (lifting.level_factor): smooth corrections, little jitter
 WIDEN = 2  # frames tightened on each side of a miss
 VERIFY = 1.0 - 1e-6  # verified against the bound less a hair (the decoder's angle wrapping, float rounding)
 MAX_ROUNDS = 40  # verification rounds (each raises levels by one; the safe levels end it earlier)
@@ -85,7 +87,12 @@ class Clip:
             else self.metric.valid
         self.values = value_matrix(motion)
         self.rot, self.period = rotation_period(motion)
-        self.layout = bounds.layout(motion, self.positions)
+        self.shrink = SHRINK
+        self.chain = None
+        if isinstance(motion, Motion) and motion.n_frames:
+            self.chain = Chain(motion, self.positions, forward_kinematics(motion.skeleton, motion.channels)[1])
+        levers = self.chain.levers(motion.channels) if self.chain is not None else None
+        self.layout = bounds.layout(motion, self.positions, levers)
         self.levels = lifting_levels(motion.frame_rate)
         self.whole = context.block_of(motion)  # the clip this is a block of: decide as on the whole clip
         if not hold_feet:
@@ -105,9 +112,11 @@ class Clip:
         unit = self.motion.unit_cm
         return JITTER_UP_TO_CM / unit if unit else self.body / 85.0
 
-    def foot_bound(self) -> float:
+    def skate_limit(self) -> float:
+        """:data:`SKATE_CM_S` in file units per second (1/340 of the body height per second when the unit is
+        unknown)."""
         unit = self.motion.unit_cm
-        return FOOT_CM / unit if unit else 1.5e-3 * self.body
+        return SKATE_CM_S / unit if unit else self.body * SKATE_CM_S / 170.0
 
     def held(self) -> np.ndarray:
         """``(frames, points)`` True on the planted feet's contact frames."""
@@ -116,9 +125,20 @@ class Clip:
             out[:, self.contacts.feet] = self.contacts.frames()
         return out
 
+    def foot_groups(self) -> np.ndarray:
+        """``(groups,)`` True on the groups that hold a foot still (:func:`.feet.foot_groups`)."""
+        return feet.foot_groups(self.motion, self.contacts, self.layout.n_groups, FOOT_CHAIN)
+
+    def skate(self, pos: np.ndarray) -> tuple[float, np.ndarray]:
+        """The largest speed decoded positions ``(frames, points, 3)`` add to a planted foot and the samples to
+        tighten (:func:`.feet.added_speed`)."""
+        return feet.added_speed(self.contacts, self.positions, pos, float(self.motion.frame_rate),
+                                self.skate_limit())
+
     def point_bounds(self, e: float) -> np.ndarray:
-        """``(frames, points)`` position bounds: ``e``, tighter on planted feet."""
-        return np.where(self.held(), min(e, self.foot_bound()), e)
+        """``(frames, points)`` position bounds: ``e`` on every point (planted feet are held by their speed,
+        :meth:`skate`)."""
+        return np.full(self.positions.shape[:2], e)
 
     def residual(self, base: np.ndarray) -> np.ndarray:
         """``(frames, columns)`` original minus decoded values (angles wrapped to the nearest turn; 0 where a
@@ -165,6 +185,13 @@ class Clip:
         eb = np.where(ok, (np.diff(np.nan_to_num(pos), 2, axis=0) ** 2).sum(axis=2), 0.0)
         return float(eb.sum()) - float(ea.sum())
 
+    def quantise(self, x: np.ndarray, base: np.ndarray, tol: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The residual ``x`` of decoded ``base`` values quantised within ``tol`` (all ``(frames, columns)``):
+        in closed loop down the hierarchy for skeletons (:mod:`.chain`)."""
+        if self.chain is not None:
+            return self.chain.quantise(x, base, tol, self.levels, self.shrink)
+        return lifting.quantise(x, tol, self.levels, self.shrink)
+
     def positions_of(self, values: np.ndarray) -> np.ndarray:
         """Positions ``(frames, points, 3)`` of decoded values ``(frames, columns)``."""
         if isinstance(self.motion, Motion):
@@ -194,43 +221,52 @@ def body_height(a: np.ndarray, valid: np.ndarray) -> float:
     return h if h > 0 else 1.0
 
 
-def fit(clip: Clip, base: np.ndarray, e: float) -> Correction:
+def fit(clip: Clip, base: np.ndarray, e: float, relax_by: float = bounds.RELAX) -> Correction:
     """Code the residual of decoded base values ``(frames, columns)`` so that every point is within ``e``
-    (file units; planted feet within the foot bound), verified on the corrected positions."""
+    (file units), planted feet still and the added jitter small, verified on the corrected positions.
+    ``relax_by``: the base tolerances' multiple of the worst-case-safe ones (the verification tightens
+    where that is too much)."""
     lay = clip.layout
     x = clip.residual(base)
-    t0 = bounds.RELAX * lay.t_safe * e
-    t0 = np.where(lay.moving, t0, bounds.RELAX * bounds.TINY * lay.t_safe * e)
+    t0 = relax_by * lay.t_safe * e
+    t0 = np.where(lay.moving, t0, relax_by * bounds.TINY * lay.t_safe * e)
     codes = bounds.code_for(t0)
     t0 = bounds.tol_of(codes)
     bound = clip.point_bounds(e)
-    cap = bounds.safe_levels(lay, bound, e)
-    relax = int(math.ceil(2 * math.log2(bounds.RELAX)))
-    # relaxed, but at the safe level on the chains of planted feet (no trembling)
-    tighter = bounds.groups_moving(lay, clip.held())
-    levels = np.where(tighter, np.maximum(cap - FOOT_RELAX, 0), np.maximum(cap - relax, 0))
+    cap = bounds.safe_levels(lay, bound, e, relax_by)
+    relax = int(math.ceil(2 * math.log2(relax_by)))
+    # relaxed, a little tighter on the joints that hold the planted feet (their speed is verified below)
+    feet = clip.foot_groups()
+    tighter = bounds.groups_moving(lay, clip.held()) & feet[None, :]
+    levels = np.where(tighter, np.maximum(cap - relax + FOOT_START, 0), np.maximum(cap - relax, 0))
     valid = clip.valid
     cap_jitter = cap + JITTER_LEVELS
+    smooth = e <= clip.smooth_up_to()
     jit = 0.0
     for _ in range(MAX_ROUNDS):
-        q, y = lifting.quantise(x, bounds.tolerances(t0, lay, levels), clip.levels)
+        q, y = clip.quantise(x, base, bounds.tolerances(t0, lay, levels))
         pos = clip.positions_of(base + y)
         with np.errstate(invalid="ignore"):
             err = np.linalg.norm(pos - clip.positions, axis=2)
         misses = valid & ~(err <= bound * VERIFY)
-        limit, step = cap, 1
-        if not misses.any():  # every bound holds: then the added acceleration energy (targets up to 2 cm)
-            jit, misses = clip.jitter(pos) if e <= clip.smooth_up_to() else (0.0, misses)
+        limit, step, only = cap, 1, None
+        if not misses.any() and smooth:  # every bound holds: then the added acceleration energy and foot speed
+            jit, misses = clip.jitter(pos)
             limit, step = cap_jitter, 2
             if jit <= JITTER:
-                break
+                skate, misses = clip.skate(pos)
+                if skate <= clip.skate_limit():
+                    break
+                step, only = 1, feet
+        if not misses.any():
+            break
         if WIDEN and misses.any():  # tighten a few frames around each miss: fewer level changes, smoother
             grown = misses.copy()
             for k in range(1, WIDEN + 1):
                 grown[k:] |= misses[:-k]
                 grown[:-k] |= misses[k:]
             misses = grown
-        if not bounds.tighten(levels, limit, lay, misses, step):
+        if not bounds.tighten(levels, limit, lay, misses, step, only):
             break
     q, y, pos = _settle(clip, x, base, t0, levels, cap, bound)
     sections = {
@@ -250,7 +286,7 @@ def _settle(clip: Clip, x: np.ndarray, base: np.ndarray, t0: np.ndarray, levels:
     Returns the integers, the decoded residual and the corrected positions; ``levels`` is raised in place."""
     lay = clip.layout
     for _ in range(MAX_ROUNDS):
-        q, y = lifting.quantise(x, bounds.tolerances(t0, lay, levels), clip.levels)
+        q, y = clip.quantise(x, base, bounds.tolerances(t0, lay, levels))
         pos = clip.positions_of(base + y)
         with np.errstate(invalid="ignore"):
             misses = clip.valid & ~(np.linalg.norm(pos - clip.positions, axis=2) <= bound * VERIFY)
@@ -265,14 +301,29 @@ def _settle(clip: Clip, x: np.ndarray, base: np.ndarray, t0: np.ndarray, levels:
     return q, y, pos
 
 
+RELAXES = (2.0**3.5, 2.0**3, 2.0**4)  # relax_by tried at the bound found (how far errors fall short of the
+# worst case depends on the clip: the smallest correction meeting the target is kept)
+
+
 def search(clip: Clip, base: np.ndarray, target: Target) -> Correction:
+    """The smallest correction meeting ``target`` (:func:`bound_search` with the first of :data:`RELAXES`, then
+    the others at the bound it found)."""
+    best = bound_search(clip, base, target, RELAXES[0])
+    for r in RELAXES[1:]:
+        other = fit(clip, base, best.bound, r)
+        if other.size < best.size and target.met(other.errors):
+            best = other
+    return best
+
+
+def bound_search(clip: Clip, base: np.ndarray, target: Target, relax_by: float) -> Correction:
     """The correction with the largest bound meeting ``target`` (the bound is at most ``max_error``; for a
     distortion or ARMS target, secant steps in log space inside the bracket of met and missed bounds, at most
     :data:`SEARCH_FITS` fits)."""
     e_cap = target.max_error
     if target.max_distortion is None and target.max_arms is None:
         assert e_cap is not None
-        return fit(clip, base, e_cap)
+        return fit(clip, base, e_cap, relax_by)
     guesses = []
     if target.max_arms is not None:
         guesses.append(2.0 * target.max_arms)
@@ -288,7 +339,7 @@ def search(clip: Clip, base: np.ndarray, target: Target) -> Correction:
     e = min(guesses + ([e_cap] if e_cap is not None else []))
     best: Correction | None = None  # the largest bound met so far
     low_fail = math.inf  # the smallest bound missed so far
-    cur = fit(clip, base, e)
+    cur = fit(clip, base, e, relax_by)
     for _ in range(SEARCH_FITS):
         score = target.score(cur.errors)
         if score <= 1:
@@ -306,6 +357,5 @@ def search(clip: Clip, base: np.ndarray, target: Target) -> Correction:
         if (best is not None and (nxt <= best.bound * 1.08 or (e_cap is not None and best.bound >= e_cap)))\
                 or (math.isfinite(low_fail) and nxt >= low_fail / 1.08 and best is not None):
             break
-        cur = fit(clip, base, nxt)
+        cur = fit(clip, base, nxt, relax_by)
     return best if best is not None else cur
-    return cur

@@ -26,16 +26,14 @@ from mocapz.errors import FormatError
 from mocapz.format.entropy import decode_int_matrix, encode_int_matrix, read_uvarint, write_uvarint
 
 BIG = 1e30  # tolerance standing for "any value will do" (a column that moves no point)
-SHRINK = 1.0  # tolerance factor per level above the finest
-
-
 STEP = 1.0  # detail step, in tolerances (<= 2)
 
 
-def level_factor(level: int) -> float:
-    """Share of a sample's tolerance used at lifting level ``level`` (0: the finest): coarser samples are
-    coded tighter, so that finer ones are predicted well enough to need no detail (smooth, cheap)."""
-    return float(SHRINK**level)
+def level_factor(level: int, shrink: float) -> float:
+    """Share of a sample's tolerance used at lifting level ``level`` (0: the finest), ``shrink ** level``:
+    coarser samples are coded tighter, so that finer ones are predicted well enough to need no detail (a
+    detail at a fine level is a bump of a few frames: acceleration energy, i.e. jitter)."""
+    return float(shrink**level)
 
 
 def plan(frames: int, levels: int) -> tuple[int, int]:
@@ -69,9 +67,9 @@ def _predict(y: np.ndarray, h: int) -> tuple[slice, np.ndarray]:
     return new, pred
 
 
-def quantise(x: np.ndarray, tol: np.ndarray, levels: int) -> tuple[np.ndarray, np.ndarray]:
+def quantise(x: np.ndarray, tol: np.ndarray, levels: int, shrink: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
     """Quantise residual ``x`` ``(frames, columns)`` within ``tol`` ``(frames, columns)`` (> 0, ``BIG`` =
-    free).
+    free), level ``l`` within ``tol * shrink ** l``.
 
     Returns the integers ``(padded frames, columns)`` (coarse knot differences, then the details level by
     level) and the decoded residual ``(frames, columns)`` (what :func:`decode` gives).
@@ -81,14 +79,14 @@ def quantise(x: np.ndarray, tol: np.ndarray, levels: int) -> tuple[np.ndarray, n
     xp, tp = _pad(x, n), _pad(np.minimum(tol, BIG), n)
     y = np.zeros((n, cols))
     span = 1 << lv
-    step0 = 2.0 * level_factor(lv) * tp[::span].min(axis=0)  # (columns,)
+    step0 = 2.0 * level_factor(lv, shrink) * tp[::span].min(axis=0)  # (columns,)
     q0 = np.round(xp[::span] / step0).astype(np.int64)
     y[::span] = q0 * step0
     parts = [np.diff(q0, axis=0, prepend=0)]
     for level in range(lv - 1, -1, -1):
         h = 1 << level
         idx, pred = _predict(y, h)
-        t = level_factor(level) * tp[idx]
+        t = level_factor(level, shrink) * tp[idx]
         step = STEP * t
         d = xp[idx] - pred
         q = (np.sign(d) * np.ceil(np.maximum(np.abs(d) - t, 0.0) / step)).astype(np.int64)
@@ -151,9 +149,9 @@ def read(data: bytes, frames: int, cols: int, levels: int) -> np.ndarray:
     return np.concatenate(parts)
 
 
-def decode(q_all: np.ndarray, tol: np.ndarray, levels: int) -> np.ndarray:
+def decode(q_all: np.ndarray, tol: np.ndarray, levels: int, shrink: float = 1.0) -> np.ndarray:
     """Inverse of :func:`quantise`: the decoded residual ``(frames, columns)`` from the integers (:func:`read`)
-    and the same ``tol`` and ``levels``."""
+    and the same ``tol``, ``levels`` and ``shrink``."""
     frames, cols = tol.shape
     if cols == 0:
         return np.zeros((frames, 0))
@@ -162,7 +160,7 @@ def decode(q_all: np.ndarray, tol: np.ndarray, levels: int) -> np.ndarray:
     span = 1 << lv
     n0 = len(range(0, n, span))
     y = np.zeros((n, cols))
-    step0 = 2.0 * level_factor(lv) * tp[::span].min(axis=0)
+    step0 = 2.0 * level_factor(lv, shrink) * tp[::span].min(axis=0)
     y[::span] = np.cumsum(q_all[:n0], axis=0) * step0
     pos = n0
     for level in range(lv - 1, -1, -1):
@@ -172,6 +170,6 @@ def decode(q_all: np.ndarray, tol: np.ndarray, levels: int) -> np.ndarray:
         q = q_all[pos : pos + m]
         if q.shape[0] != m:
             raise FormatError(None, "corrupted correction stream (detail count)")
-        y[idx] = pred + q * (STEP * level_factor(level) * tp[idx])
+        y[idx] = pred + q * (STEP * level_factor(level, shrink) * tp[idx])
         pos += m
     return y[:frames]

@@ -39,7 +39,7 @@ Decoder = Callable[[Sections, ClipHeader], AnyMotion]
 
 DEFAULT_ERROR_CM = 1.0  # the default target (codecs.target.DEFAULT_TARGET_TEXT); 1/170 of the body height
 # when the length unit is unknown
-FORMAT = 1
+FORMAT = 2  # 1: every lifting level within the whole tolerance; 2: a shrink factor per level (c.head)
 BASE_NONE, BASE_MODEL = 0, 1
 
 
@@ -125,7 +125,8 @@ def corrected(encode: Encoder, decode: Decoder, codec: str, declared: tuple[Opti
                               f"{cor.errors.distortion_pct:.4g} %, max error {cor.errors.max_error:.4g} file units "
                               "(the lossless codec gives the values back exactly)")
         context.spend(clip.whole, cor.added)  # a block: what it used of the clip's jitter allowance
-        head = write_uvarint(FORMAT) + write_uvarint(kind) + write_uvarint(clip.levels)
+        head = write_uvarint(FORMAT) + write_uvarint(kind) + write_uvarint(clip.levels) \
+            + write_uvarint(shrink_code(clip.shrink))
         return {**base_sections, "c.head": head, **cor.sections}
 
     def dec(sections: Sections, header: ClipHeader) -> AnyMotion:
@@ -156,7 +157,9 @@ def apply(sections: Sections, header: ClipHeader, decode: Decoder) -> AnyMotion:
         fmt, pos = read_uvarint(head, 0)
         kind, pos = read_uvarint(head, pos)
         levels, pos = read_uvarint(head, pos)
-        if fmt != FORMAT or kind not in (BASE_NONE, BASE_MODEL) or levels > 16:
+        code, pos = read_uvarint(head, pos) if fmt == 2 else (100, pos)
+        if fmt not in (1, 2) or kind not in (BASE_NONE, BASE_MODEL) or levels > 16 or not 1 <= code <= 100 \
+                or pos != len(head):
             raise FormatError(None, "corrupted correction header")
         groups = group_of(header)
         frames, cols = header.frames, groups.size
@@ -178,7 +181,7 @@ def apply(sections: Sections, header: ClipHeader, decode: Decoder) -> AnyMotion:
     # 2 ** (-level / 2) from a table of the levels' values (the same numbers, without a power per value)
     halves = 2.0 ** (-np.arange(int(lev.max(initial=0)) + 1, dtype=np.float64) / 2.0)
     tol = bounds.tol_of(codes)[None, :] * halves[lev][:, groups]
-    y = lifting.decode(q, tol, levels)
+    y = lifting.decode(q, tol, levels, code / 100.0)
     if not y.any():
         return base_motion
     out = value_matrix(base_motion) + y
@@ -193,6 +196,14 @@ def apply(sections: Sections, header: ClipHeader, decode: Decoder) -> AnyMotion:
         out[:, rot] = o
         return base_motion.with_channels(out)
     return base_motion.with_positions(out.reshape(base_motion.positions.shape))
+
+
+def shrink_code(shrink: float) -> int:
+    """The ``c.head`` code of a lifting shrink factor (hundredths)."""
+    code = int(round(shrink * 100))
+    if abs(code - shrink * 100) > 1e-9 or not 1 <= code <= 100:
+        raise ValueError(f"shrink {shrink} is not a whole number of hundredths in (0, 1]")
+    return code
 
 
 def group_of(header: ClipHeader) -> np.ndarray:

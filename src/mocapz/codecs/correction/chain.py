@@ -1,0 +1,183 @@
+"""Closed-loop correction down a skeleton's hierarchy: a joint's rotation is coded against its *decoded* parent.
+
+Coding every channel against its own original value lets the errors of a chain's rotations add up: an error
+``q`` on the hips turns every bone below them, so a hand is moved by ``q`` times the whole chain's length
+(the lever) and every joint of the chain shares the position bound with all the others. Here the encoder
+walks the joints parents first; for a joint ``j`` with three moving rotation channels (a *feedback* joint) it
+codes the local rotation that, composed with the parent's decoded global rotation, gives back ``j``'s
+original global rotation:
+
+    R_local_target(j) = Rg_decoded(parent)^T  Rg_original(j)
+
+so a joint's global rotation is off by its own quantisation error only, and that error moves the points
+below it by at most ``|q| * |bone|`` (the bones leaving ``j``), not ``|q| * lever``. The decoder is
+unchanged: it adds the coded residuals to the channels as before (the loop is the encoder's alone).
+
+Shapes: values ``(frames, columns)`` in the file's units (angles in the file's angle unit), rotations
+``(frames, 3, 3)``.
+"""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from mocapz.codecs.correction import lifting
+from mocapz.model.kinematics import euler_rotations, local_translations
+from mocapz.model.motion import Motion
+
+MAX_TURN = 0.3  # radians a bone is turned at most to aim at its child (beyond: its global rotation is matched)
+
+
+class Chain:
+    """What the closed loop needs of an original skeletal clip.
+
+    Args:
+        motion: the original clip.
+        global_rot: its global rotations ``(frames, joints, 3, 3)`` (from forward kinematics).
+    """
+
+    def __init__(self, motion: Motion, positions: np.ndarray, global_rot: np.ndarray) -> None:
+        sk = motion.skeleton
+        self.positions = positions
+        self.skeleton = sk
+        self.values = np.asarray(motion.channels, dtype=np.float64)
+        self.global_rot = global_rot
+        self.scale = np.pi / 180.0 if sk.angle_unit == "deg" else 1.0
+        self.period = 360.0 if sk.angle_unit == "deg" else 2 * np.pi
+        moving = np.ptp(self.values, axis=0) > 0 if len(self.values) else np.zeros(sk.n_channels, dtype=bool)
+        self.slices = sk.channel_slices()
+        self.rot_cols: list[np.ndarray | None] = []  # per joint: its rotation columns in `order`, if feedback
+        for sl, chs, order in zip(self.slices, sk.channels, sk.rotation_order, strict=True):
+            cols = np.array([sl.start + chs.index(f"{a}rotation") for a in order], dtype=np.int64) \
+                if len(order) == 3 else np.zeros(0, dtype=np.int64)
+            ok = len(order) == 3 and len(set(order.upper())) == 3 and bool(moving[cols].all())
+            self.rot_cols.append(cols if ok else None)
+        self.feedback = np.array([c is not None for c in self.rot_cols], dtype=bool)
+        self.feedback[sk.parents < 0] = False  # a root has nothing decoded above it
+        kids: list[list[int]] = [[] for _ in range(sk.n_joints)]  # points (joints, end sites) hanging on j
+        for c in range(sk.n_joints):
+            if sk.parents[c] >= 0:
+                kids[sk.parents[c]].append(c)
+        for e, (j, _, _) in enumerate(sk.end_sites):
+            kids[j].append(sk.n_joints + e)
+        self.aim = np.array([k[0] if len(k) == 1 else -1 for k in kids], dtype=np.int64)
+
+    def levers(self, channels: np.ndarray) -> np.ndarray:
+        """``(joints,)`` how far a rotation error of each joint moves a point (per radian, file units): the
+        longest bone leaving it, continued through children without feedback (they turn with it)."""
+        sk = self.skeleton
+        trans = local_translations(sk, channels) if len(channels) else np.broadcast_to(sk.offsets, (1, sk.n_joints, 3))
+        bone = np.linalg.norm(trans, axis=2).max(axis=0)  # (joints,) from the parent to each joint
+        out = np.zeros(sk.n_joints)
+        for j, off, _ in sk.end_sites:
+            out[j] = max(out[j], float(np.linalg.norm(off)))
+        for c in range(sk.n_joints - 1, -1, -1):  # children before parents
+            p = sk.parents[c]
+            if p >= 0:
+                out[p] = max(out[p], bone[c] + (0.0 if self.feedback[c] else out[c]))
+        return out
+
+    def quantise(self, x: np.ndarray, base: np.ndarray, tol: np.ndarray, levels: int,
+                 shrink: float) -> tuple[np.ndarray, np.ndarray]:
+        """:func:`~mocapz.codecs.correction.lifting.quantise` in closed loop: the residual of every feedback
+        joint's rotation columns is taken against the decoded parent; ``x`` ``(frames, columns)`` is the plain
+        residual (original minus ``base``, wrapped) used for every other column. Returns the integers and the
+        decoded residual, as :func:`~mocapz.codecs.correction.lifting.quantise`."""
+        sk = self.skeleton
+        frames, cols = x.shape
+        x = x.copy()
+        _, n = lifting.plan(frames, levels)
+        q = np.zeros((n, cols), dtype=np.int64)
+        y = np.zeros_like(x)
+        g_dec = np.empty((frames, sk.n_joints, 3, 3))
+        p_dec = np.empty((frames, sk.n_joints, 3))
+        half = self.period / 2
+        for j in range(sk.n_joints):
+            sl = self.slices[j]
+            p = sk.parents[j]
+            rot = self.rot_cols[j] if self.feedback[j] else None
+            own = np.arange(sl.start, sl.stop)
+            plain = own if rot is None else np.setdiff1d(own, rot)
+            if plain.size:  # translations, and rotations coded against their own original
+                q[:, plain], y[:, plain] = lifting.quantise(x[:, plain], tol[:, plain], levels, shrink)
+            trans = self._translation(j, base[:, sl] + y[:, sl])
+            p_dec[:, j] = trans if p < 0 else p_dec[:, p] + np.einsum("fab,fb->fa", g_dec[:, p], trans)
+            if rot is not None:
+                goal = self.global_rot[:, j]
+                if self.aim[j] >= 0:  # turn the bone to point from the decoded joint at the original child
+                    goal = _turn(self.positions[:, self.aim[j]] - self.positions[:, j],
+                                 self.positions[:, self.aim[j]] - p_dec[:, j], MAX_TURN) @ goal
+                a = self.skeleton.axis[j]  # type: ignore[index]
+                target = a.T @ (g_dec[:, p].swapaxes(1, 2) @ goal) @ a
+                angles = self._euler(target, sk.rotation_order[j], self.values[:, rot])
+                x[:, rot] = np.mod(angles - base[:, rot] + half, self.period) - half
+                q[:, rot], y[:, rot] = lifting.quantise(x[:, rot], tol[:, rot], levels, shrink)
+            g_dec[:, j] = self._local(j, base[:, sl] + y[:, sl])
+            if p >= 0:
+                g_dec[:, j] = g_dec[:, p] @ g_dec[:, j]
+        return q, y
+
+    def _translation(self, j: int, values: np.ndarray) -> np.ndarray:
+        """Local translation ``(frames, 3)`` of joint ``j`` from its decoded channel values (its offset where
+        it has no position channel)."""
+        out = np.broadcast_to(self.skeleton.offsets[j], (values.shape[0], 3)).copy()
+        for k, c in enumerate(self.skeleton.channels[j]):
+            if c.endswith("position"):
+                out[:, "XYZ".index(c[0])] = values[:, k]
+        return out
+
+    def _local(self, j: int, values: np.ndarray) -> np.ndarray:
+        """Local rotation ``(frames, 3, 3)`` of joint ``j`` from its decoded channel values."""
+        sk = self.skeleton
+        order = sk.rotation_order[j]
+        frames = values.shape[0]
+        if not order:
+            return np.broadcast_to(np.eye(3), (frames, 3, 3)).copy()
+        chs = sk.channels[j]
+        cols = [chs.index(f"{a}rotation") for a in order]
+        r = euler_rotations(values[:, cols] * self.scale, order)
+        a = sk.axis[j]  # type: ignore[index]
+        return a @ r @ a.T
+
+    def _euler(self, r: np.ndarray, order: str, near: np.ndarray) -> np.ndarray:
+        """Intrinsic Euler angles ``(frames, 3)`` (file angle unit) of rotations ``(frames, 3, 3)`` in ``order``,
+        of the two solutions and every turn the one nearest ``near`` ``(frames, 3)``."""
+        with warnings.catch_warnings():  # gimbal lock: scipy picks one solution, the nearest is kept below
+            warnings.simplefilter("ignore")
+            a = Rotation.from_matrix(r).as_euler(order.upper()) / self.scale
+        half = self.period / 2
+        b = a + np.array([half, 0.0, half])
+        b[:, 1] = half - a[:, 1]
+        best = None
+        for s in (a, b):
+            s = s + self.period * np.round((near - s) / self.period)
+            if best is None:
+                best = s
+            else:
+                closer = np.abs(s - near).sum(axis=1) < np.abs(best - near).sum(axis=1)
+                best = np.where(closer[:, None], s, best)
+        assert best is not None
+        return best
+
+
+def _turn(a: np.ndarray, b: np.ndarray, most: float) -> np.ndarray:
+    """The smallest rotations ``(frames, 3, 3)`` taking the directions of ``a`` to those of ``b`` ``(frames, 3)``;
+    identity where either is zero or the turn is over ``most`` radians (a bone short beside the error of
+    its joint: turning it would swing everything below)."""
+    na, nb = np.linalg.norm(a, axis=1), np.linalg.norm(b, axis=1)
+    ok = (na > 0) & (nb > 0)
+    u = np.where(ok[:, None], a / np.where(ok, na, 1.0)[:, None], 0.0)
+    w = np.where(ok[:, None], b / np.where(ok, nb, 1.0)[:, None], 0.0)
+    v = np.cross(u, w)
+    c = (u * w).sum(axis=1)
+    k = np.zeros((len(a), 3, 3))
+    k[:, 0, 1], k[:, 0, 2], k[:, 1, 2] = -v[:, 2], v[:, 1], -v[:, 0]
+    k[:, 1, 0], k[:, 2, 0], k[:, 2, 1] = v[:, 2], -v[:, 1], v[:, 0]
+    ok &= c > np.cos(most)
+    f = np.where(ok, 1.0 / (1.0 + np.maximum(c, -0.5)), 0.0)
+    out = np.eye(3) + k + (k @ k) * f[:, None, None]
+    out[~ok] = np.eye(3)
+    return out

@@ -1,0 +1,66 @@
+"""Planted feet in the correction layer: which groups hold a foot still, and how much speed a decoded foot adds.
+
+The original's foot contacts (:func:`mocapz.metrics.contacts.find_contacts`, METRICS.md's height and speed
+thresholds) say where a foot is planted; the encoder verifies the speed the decoded foot adds there (METRICS.md
+``foot_skate``, frame to frame and over 0.1 s windows) and tightens the joints just above the foot, which the
+closed loop (:mod:`.chain`) aims at the original below them, until it is small.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from mocapz.metrics.contacts import Contacts
+from mocapz.metrics.skate import full_windows, horizontal_speeds, window_steps
+from mocapz.model.motion import AnyMotion, Motion
+
+
+def foot_groups(motion: AnyMotion, contacts: Contacts | None, n_groups: int, chain: int) -> np.ndarray:
+    """``(groups,)`` True on the ``chain`` joints above each foot point (markers: the foot markers)."""
+    out = np.zeros(n_groups, dtype=bool)
+    if contacts is None:
+        return out
+    if not isinstance(motion, Motion):
+        out[contacts.feet] = True
+        return out
+    sk = motion.skeleton
+    for f in contacts.feet:
+        j = int(sk.point_parents[f])
+        for _ in range(chain):
+            if j < 0:
+                break
+            out[j] = True
+            j = int(sk.parents[j])
+    return out
+
+
+def added_speed(contacts: Contacts | None, original: np.ndarray, pos: np.ndarray, fps: float,
+                limit: float) -> tuple[float, np.ndarray]:
+    """The largest mean horizontal speed decoded positions ``pos`` add to a planted foot of the ``original``
+    (both ``(frames, points, 3)``, file units), over each foot's planted steps, frame to frame and over 0.1 s
+    windows (file units per second), and ``(frames, points)`` True on the foot samples whose added speed,
+    largest first, makes up what is over ``limit`` (to bring it to half the limit)."""
+    out = np.zeros(pos.shape[:2], dtype=bool)
+    if contacts is None or not contacts.steps.any() or pos.shape[0] < 3:
+        return 0.0, out
+    worst = 0.0
+    for w in sorted({1, window_steps(fps)}):
+        if pos.shape[0] <= w:
+            continue
+        for i, f in enumerate(contacts.feet):
+            full = full_windows(contacts.steps[:, i], w)
+            if not full.any():
+                continue
+            excess = (horizontal_speeds(np.nan_to_num(pos[:, f]), contacts.horizontal, w, fps)
+                      - horizontal_speeds(original[:, f], contacts.horizontal, w, fps))
+            idx = np.flatnonzero(full)
+            added = float(excess[idx].mean())
+            worst = max(worst, added)
+            if added <= limit:
+                continue
+            order = idx[np.argsort(-excess[idx])]
+            need = (added - 0.5 * limit) * idx.size
+            n = int(np.searchsorted(np.cumsum(np.maximum(excess[order], 0.0)), need)) + 1
+            for t in order[:n]:
+                out[t : t + w + 1, f] = True
+    return worst, out
