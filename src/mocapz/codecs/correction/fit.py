@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import math
 import warnings
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -26,7 +26,7 @@ from mocapz.model.motion import AnyMotion, Motion
 SKATE_CM_S = 0.3  # foot speed a planted foot may gain, frame to frame and over 0.1 s (cm/s; issue 11 allows 0.5)
 FOOT_CHAIN = 3  # joints above a foot tightened for its skate (the closed loop aims each at the original below it)
 FOOT_START = 2  # levels those joints start tighter than the others on planted frames
-SHRINK = 0.9  # tolerance factor per lifting level (lifting.level_factor): smooth corrections, little jitter
+SHRINK = 0.85  # tolerance factor per lifting level (lifting.level_factor): smooth corrections, little jitter
 WIDEN = 2  # frames tightened on each side of a miss
 VERIFY = 1.0 - 1e-6  # verified against the bound less a hair (the decoder's angle wrapping, float rounding)
 MAX_ROUNDS = 40  # verification rounds (each raises levels by one; the safe levels end it earlier)
@@ -69,6 +69,7 @@ class Correction:
     bound: float
     jitter: float = 0.0
     added: float = 0.0  # acceleration energy added (file units squared, summed over frames and points)
+    depth: int = 0  # lifting levels (knots 2 ** depth frames apart)
 
 
 class Clip:
@@ -185,12 +186,12 @@ class Clip:
         eb = np.where(ok, (np.diff(np.nan_to_num(pos), 2, axis=0) ** 2).sum(axis=2), 0.0)
         return float(eb.sum()) - float(ea.sum())
 
-    def quantise(self, x: np.ndarray, base: np.ndarray, tol: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def quantise(self, x: np.ndarray, base: np.ndarray, tol: np.ndarray, depth: int) -> tuple[np.ndarray, np.ndarray]:
         """The residual ``x`` of decoded ``base`` values quantised within ``tol`` (all ``(frames, columns)``):
         in closed loop down the hierarchy for skeletons (:mod:`.chain`)."""
         if self.chain is not None:
-            return self.chain.quantise(x, base, tol, self.levels, self.shrink)
-        return lifting.quantise(x, tol, self.levels, self.shrink)
+            return self.chain.quantise(x, base, tol, depth, self.shrink)
+        return lifting.quantise(x, tol, depth, self.shrink)
 
     def positions_of(self, values: np.ndarray) -> np.ndarray:
         """Positions ``(frames, points, 3)`` of decoded values ``(frames, columns)``."""
@@ -221,11 +222,12 @@ def body_height(a: np.ndarray, valid: np.ndarray) -> float:
     return h if h > 0 else 1.0
 
 
-def fit(clip: Clip, base: np.ndarray, e: float, relax_by: float = bounds.RELAX) -> Correction:
+def fit(clip: Clip, base: np.ndarray, e: float, relax_by: float = bounds.RELAX, depth: int | None = None) -> Correction:
     """Code the residual of decoded base values ``(frames, columns)`` so that every point is within ``e``
     (file units), planted feet still and the added jitter small, verified on the corrected positions.
     ``relax_by``: the base tolerances' multiple of the worst-case-safe ones (the verification tightens
-    where that is too much)."""
+    where that is too much); ``depth``: lifting levels (default: the clip's, :func:`lifting_levels`)."""
+    depth = clip.levels if depth is None else depth
     lay = clip.layout
     x = clip.residual(base)
     t0 = relax_by * lay.t_safe * e
@@ -244,7 +246,7 @@ def fit(clip: Clip, base: np.ndarray, e: float, relax_by: float = bounds.RELAX) 
     smooth = e <= clip.smooth_up_to()
     jit = 0.0
     for _ in range(MAX_ROUNDS):
-        q, y = clip.quantise(x, base, bounds.tolerances(t0, lay, levels))
+        q, y = clip.quantise(x, base, bounds.tolerances(t0, lay, levels), depth)
         pos = clip.positions_of(base + y)
         with np.errstate(invalid="ignore"):
             err = np.linalg.norm(pos - clip.positions, axis=2)
@@ -268,25 +270,25 @@ def fit(clip: Clip, base: np.ndarray, e: float, relax_by: float = bounds.RELAX) 
             misses = grown
         if not bounds.tighten(levels, limit, lay, misses, step, only):
             break
-    q, y, pos = _settle(clip, x, base, t0, levels, cap, bound)
+    q, y, pos = _settle(clip, x, base, t0, levels, cap, bound, depth)
     sections = {
         "c.codes": pack_uint64(codes.astype(np.uint64)),
         "c.levels": encode_int_matrix(np.diff(levels, axis=0, prepend=0)),
-        "c.res": lifting.pack(q, x.shape[0], clip.levels),
+        "c.res": lifting.pack(q, x.shape[0], depth),
     }
     size = sum(len(v) + 8 for v in sections.values())
-    return Correction(sections, size, pos, clip.metric.of_positions(pos), e, jit, clip.added_energy(pos))
+    return Correction(sections, size, pos, clip.metric.of_positions(pos), e, jit, clip.added_energy(pos), depth)
 
 
 def _settle(clip: Clip, x: np.ndarray, base: np.ndarray, t0: np.ndarray, levels: np.ndarray, cap: np.ndarray,
-            bound: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+            bound: np.ndarray, depth: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The last word on the bound: the rounds of :func:`fit` may end (jitter tightening undoing a bound met one
     round before) with a few points over their bound; the groups acting on them go straight to their safe
     level, where the worst-case sum holds, until none is over (at worst every group at its safe level).
     Returns the integers, the decoded residual and the corrected positions; ``levels`` is raised in place."""
     lay = clip.layout
     for _ in range(MAX_ROUNDS):
-        q, y = clip.quantise(x, base, bounds.tolerances(t0, lay, levels))
+        q, y = clip.quantise(x, base, bounds.tolerances(t0, lay, levels), depth)
         pos = clip.positions_of(base + y)
         with np.errstate(invalid="ignore"):
             misses = clip.valid & ~(np.linalg.norm(pos - clip.positions, axis=2) <= bound * VERIFY)
@@ -301,29 +303,56 @@ def _settle(clip: Clip, x: np.ndarray, base: np.ndarray, t0: np.ndarray, levels:
     return q, y, pos
 
 
-RELAXES = (2.0**3.5, 2.0**3, 2.0**4)  # relax_by tried at the bound found (how far errors fall short of the
-# worst case depends on the clip: the smallest correction meeting the target is kept)
+RELAXES = (16.0,)  # relax_by tried: how far errors fall short of the worst case (8, 11.3, 22.6 and 32 gave
+# larger files on the CMU clips)
+DEPTHS = (0, -1, -2)  # lifting levels tried, added to the clip's (knots a quarter, an eighth, a sixteenth of a
+# second apart: which codes a clip smallest depends on its motion)
+SAMPLE_S = 6.0  # a long clip's settings are chosen on two windows of this many seconds, then coded whole
 
 
 def search(clip: Clip, base: np.ndarray, target: Target) -> Correction:
-    """The smallest correction meeting ``target`` (:func:`bound_search` with the first of :data:`RELAXES`, then
-    the others at the bound it found)."""
-    best = bound_search(clip, base, target, RELAXES[0])
-    for r in RELAXES[1:]:
-        other = fit(clip, base, best.bound, r)
-        if other.size < best.size and target.met(other.errors):
-            best = other
+    """The smallest correction meeting ``target``: each setting of :data:`RELAXES` x :data:`DEPTHS` is tried
+    with :func:`bound_search` (on two windows of a long clip: a prediction, then the chosen setting is coded
+    and verified on the whole clip; should it miss, the first setting is)."""
+    settings = list(dict.fromkeys((r, max(1, clip.levels + d)) for d in DEPTHS for r in RELAXES))
+    parts = _windows(clip, base)
+    if parts[0][0] is clip:
+        tried = [bound_search(clip, base, target, r, depth) for r, depth in settings]
+        met = [c for c in tried if target.met(c.errors)]
+        return min(met, key=lambda c: c.size) if met else tried[0]
+    sizes = [sum(bound_search(c, b, target, r, depth).size for c, b in parts) for r, depth in settings]
+    chosen = settings[int(np.argmin(sizes))]
+    best = bound_search(clip, base, target, *chosen)
+    if not target.met(best.errors) and chosen != settings[0]:
+        best = bound_search(clip, base, target, *settings[0])
     return best
 
 
-def bound_search(clip: Clip, base: np.ndarray, target: Target, relax_by: float) -> Correction:
+def _windows(clip: Clip, base: np.ndarray) -> list[tuple[Clip, np.ndarray]]:
+    """The clip itself, or for a long clip (over three windows of :data:`SAMPLE_S`; not a block, whose
+    decisions are the whole clip's) two windows centred at a third and two thirds of it."""
+    motion = clip.motion
+    w = max(256, int(SAMPLE_S * motion.frame_rate))
+    n = motion.n_frames
+    if n <= 3 * w or clip.whole is not None:
+        return [(clip, base)]
+    out = []
+    for centre in (n // 3, 2 * n // 3):
+        a = max(0, centre - w // 2)
+        sub = motion.slice(a, a + w)
+        sub = replace(sub, metadata={k: v for k, v in sub.metadata.items() if k != "block_of"})
+        out.append((Clip(sub, clip.contacts is not None), base[a:a + w]))
+    return out
+
+
+def bound_search(clip: Clip, base: np.ndarray, target: Target, relax_by: float, depth: int) -> Correction:
     """The correction with the largest bound meeting ``target`` (the bound is at most ``max_error``; for a
     distortion or ARMS target, secant steps in log space inside the bracket of met and missed bounds, at most
     :data:`SEARCH_FITS` fits)."""
     e_cap = target.max_error
     if target.max_distortion is None and target.max_arms is None:
         assert e_cap is not None
-        return fit(clip, base, e_cap, relax_by)
+        return fit(clip, base, e_cap, relax_by, depth)
     guesses = []
     if target.max_arms is not None:
         guesses.append(2.0 * target.max_arms)
@@ -339,7 +368,7 @@ def bound_search(clip: Clip, base: np.ndarray, target: Target, relax_by: float) 
     e = min(guesses + ([e_cap] if e_cap is not None else []))
     best: Correction | None = None  # the largest bound met so far
     low_fail = math.inf  # the smallest bound missed so far
-    cur = fit(clip, base, e, relax_by)
+    cur = fit(clip, base, e, relax_by, depth)
     for _ in range(SEARCH_FITS):
         score = target.score(cur.errors)
         if score <= 1:
@@ -357,5 +386,5 @@ def bound_search(clip: Clip, base: np.ndarray, target: Target, relax_by: float) 
         if (best is not None and (nxt <= best.bound * 1.08 or (e_cap is not None and best.bound >= e_cap)))\
                 or (math.isfinite(low_fail) and nxt >= low_fail / 1.08 and best is not None):
             break
-        cur = fit(clip, base, nxt, relax_by)
+        cur = fit(clip, base, nxt, relax_by, depth)
     return best if best is not None else cur

@@ -125,7 +125,7 @@ def corrected(encode: Encoder, decode: Decoder, codec: str, declared: tuple[Opti
                               f"{cor.errors.distortion_pct:.4g} %, max error {cor.errors.max_error:.4g} file units "
                               "(the lossless codec gives the values back exactly)")
         context.spend(clip.whole, cor.added)  # a block: what it used of the clip's jitter allowance
-        head = write_uvarint(FORMAT) + write_uvarint(kind) + write_uvarint(clip.levels) \
+        head = write_uvarint(FORMAT) + write_uvarint(kind) + write_uvarint(cor.depth) \
             + write_uvarint(shrink_code(clip.shrink))
         return {**base_sections, "c.head": head, **cor.sections}
 
