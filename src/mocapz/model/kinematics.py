@@ -37,6 +37,21 @@ def euler_rotations(angles: np.ndarray, order: str) -> np.ndarray:
     return r
 
 
+def euler_angles(r: np.ndarray, order: str) -> np.ndarray:
+    """Inverse of :func:`euler_rotations` for three distinct axes: angles ``(..., 3)`` radians of rotations
+    ``(..., 3, 3)``, the middle one in ``[-pi/2, pi/2]`` (at gimbal lock the last is 0)."""
+    i, j, k = ("XYZ".index(a) for a in order.upper())
+    s = 1.0 if (j - i) % 3 == 1 else -1.0  # cyclic order (XYZ, YZX, ZXY) or not
+    mid = np.arcsin(np.clip(s * r[..., i, k], -1.0, 1.0))
+    lock = np.abs(s * r[..., i, k]) > 1.0 - 1e-12
+    first = np.arctan2(-s * r[..., j, k], r[..., k, k])
+    last = np.arctan2(-s * r[..., i, j], r[..., i, i])
+    if lock.any():  # only first + last (or first - last) is defined: last = 0
+        first = np.where(lock, np.arctan2(s * r[..., k, j], r[..., j, j]), first)
+        last = np.where(lock, 0.0, last)
+    return np.stack([first, mid, last], axis=-1)
+
+
 def local_rotations(skeleton: Skeleton, channels: np.ndarray) -> np.ndarray:
     """Local rotation matrices ``(frames, joints, 3, 3)`` from channel values ``(frames, channels)``: the joints
     of one rotation order in one vectorised step."""

@@ -19,13 +19,10 @@ Shapes: values ``(frames, columns)`` in the file's units (angles in the file's a
 
 from __future__ import annotations
 
-import warnings
-
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from mocapz.codecs.correction import lifting
-from mocapz.model.kinematics import euler_rotations, local_translations
+from mocapz.model.kinematics import euler_angles, euler_rotations, local_translations
 from mocapz.model.motion import Motion
 
 MAX_TURN = 0.3  # radians a bone is turned at most to aim at its child (beyond: its global rotation is matched)
@@ -55,6 +52,7 @@ class Chain:
                 if len(order) == 3 else np.zeros(0, dtype=np.int64)
             ok = len(order) == 3 and len(set(order.upper())) == 3 and bool(moving[cols].all())
             self.rot_cols.append(cols if ok else None)
+        self.turned = [not np.array_equal(a, np.eye(3)) for a in sk.axis]  # type: ignore[union-attr]
         self.feedback = np.array([c is not None for c in self.rot_cols], dtype=bool)
         self.feedback[sk.parents < 0] = False  # a root has nothing decoded above it
         kids: list[list[int]] = [[] for _ in range(sk.n_joints)]  # points (joints, end sites) hanging on j
@@ -110,8 +108,10 @@ class Chain:
                 if self.aim[j] >= 0:  # turn the bone to point from the decoded joint at the original child
                     goal = _turn(self.positions[:, self.aim[j]] - self.positions[:, j],
                                  self.positions[:, self.aim[j]] - p_dec[:, j], MAX_TURN) @ goal
-                a = self.skeleton.axis[j]  # type: ignore[index]
-                target = a.T @ (g_dec[:, p].swapaxes(1, 2) @ goal) @ a
+                target = g_dec[:, p].swapaxes(1, 2) @ goal
+                if self.turned[j]:
+                    a = self.skeleton.axis[j]  # type: ignore[index]
+                    target = a.T @ target @ a
                 angles = self._euler(target, sk.rotation_order[j], self.values[:, rot])
                 x[:, rot] = np.mod(angles - base[:, rot] + half, self.period) - half
                 q[:, rot], y[:, rot] = lifting.quantise(x[:, rot], tol[:, rot], levels, shrink)
@@ -139,15 +139,15 @@ class Chain:
         chs = sk.channels[j]
         cols = [chs.index(f"{a}rotation") for a in order]
         r = euler_rotations(values[:, cols] * self.scale, order)
+        if not self.turned[j]:
+            return r
         a = sk.axis[j]  # type: ignore[index]
         return a @ r @ a.T
 
     def _euler(self, r: np.ndarray, order: str, near: np.ndarray) -> np.ndarray:
         """Intrinsic Euler angles ``(frames, 3)`` (file angle unit) of rotations ``(frames, 3, 3)`` in ``order``,
         of the two solutions and every turn the one nearest ``near`` ``(frames, 3)``."""
-        with warnings.catch_warnings():  # gimbal lock: scipy picks one solution, the nearest is kept below
-            warnings.simplefilter("ignore")
-            a = Rotation.from_matrix(r).as_euler(order.upper()) / self.scale
+        a = euler_angles(r, order) / self.scale
         half = self.period / 2
         b = a + np.array([half, 0.0, half])
         b[:, 1] = half - a[:, 1]

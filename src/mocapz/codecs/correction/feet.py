@@ -15,8 +15,12 @@ from mocapz.metrics.skate import full_windows, horizontal_speeds, window_steps
 from mocapz.model.motion import AnyMotion, Motion
 
 
-def foot_groups(motion: AnyMotion, contacts: Contacts | None, n_groups: int, chain: int) -> np.ndarray:
-    """``(groups,)`` True on the ``chain`` joints above each foot point (markers: the foot markers)."""
+def foot_groups(motion: AnyMotion, contacts: Contacts | None, positions: np.ndarray, n_groups: int,
+                reach: float) -> np.ndarray:
+    """``(groups,)`` True on the joints above each foot point, up to and including the first with channels that
+    is ``reach`` (file units) or farther from it over the clip (median), the knee on a human leg whatever the
+    joints between (CMU: toe, ankle, knee; an ASF with a mid-foot joint: one more); markers: the foot markers.
+    ``positions`` ``(frames, points, 3)`` is the original's."""
     out = np.zeros(n_groups, dtype=bool)
     if contacts is None:
         return out
@@ -26,10 +30,11 @@ def foot_groups(motion: AnyMotion, contacts: Contacts | None, n_groups: int, cha
     sk = motion.skeleton
     for f in contacts.feet:
         j = int(sk.point_parents[f])
-        for _ in range(chain):
-            if j < 0:
-                break
+        while j >= 0:
             out[j] = True
+            far = float(np.median(np.linalg.norm(positions[:, j] - positions[:, f], axis=1))) >= reach
+            if far and sk.channels[j]:
+                break
             j = int(sk.parents[j])
     return out
 

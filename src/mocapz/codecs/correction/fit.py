@@ -24,7 +24,8 @@ from mocapz.model.kinematics import forward_kinematics
 from mocapz.model.motion import AnyMotion, Motion
 
 SKATE_CM_S = 0.3  # foot speed a planted foot may gain, frame to frame and over 0.1 s (cm/s; issue 11 allows 0.5)
-FOOT_CHAIN = 3  # joints above a foot tightened for its skate (the closed loop aims each at the original below it)
+FOOT_REACH = 0.2  # the joints above a foot tightened for its skate reach the first this far from it (a share of the
+# body height: the knee), the closed loop aiming each at the original below it
 FOOT_START = 2  # levels those joints start tighter than the others on planted frames
 SHRINK = 0.85  # tolerance factor per lifting level (lifting.level_factor): smooth corrections, little jitter
 WIDEN = 2  # frames tightened on each side of a miss
@@ -128,7 +129,8 @@ class Clip:
 
     def foot_groups(self) -> np.ndarray:
         """``(groups,)`` True on the groups that hold a foot still (:func:`.feet.foot_groups`)."""
-        return feet.foot_groups(self.motion, self.contacts, self.layout.n_groups, FOOT_CHAIN)
+        return feet.foot_groups(self.motion, self.contacts, self.positions, self.layout.n_groups,
+                                FOOT_REACH * self.body)
 
     def skate(self, pos: np.ndarray) -> tuple[float, np.ndarray]:
         """The largest speed decoded positions ``(frames, points, 3)`` add to a planted foot and the samples to
@@ -268,7 +270,8 @@ def fit(clip: Clip, base: np.ndarray, e: float, relax_by: float = bounds.RELAX, 
                 grown[k:] |= misses[:-k]
                 grown[:-k] |= misses[k:]
             misses = grown
-        if not bounds.tighten(levels, limit, lay, misses, step, only):
+        if not bounds.tighten(levels, limit, lay, misses, step, only) and (
+                only is None or not bounds.tighten(levels, limit, lay, misses, step)):  # then every joint above
             break
     q, y, pos = _settle(clip, x, base, t0, levels, cap, bound, depth)
     sections = {
@@ -310,11 +313,13 @@ DEPTHS = (0, -1, -2)  # lifting levels tried, added to the clip's (knots a quart
 SAMPLE_S = 6.0  # a long clip's settings are chosen on two windows of this many seconds, then coded whole
 
 
-def search(clip: Clip, base: np.ndarray, target: Target) -> Correction:
+def search(clip: Clip, base: np.ndarray, target: Target, depth: int | None = None) -> Correction:
     """The smallest correction meeting ``target``: each setting of :data:`RELAXES` x :data:`DEPTHS` is tried
     with :func:`bound_search` (on two windows of a long clip: a prediction, then the chosen setting is coded
-    and verified on the whole clip; should it miss, the first setting is)."""
-    settings = list(dict.fromkeys((r, max(1, clip.levels + d)) for d in DEPTHS for r in RELAXES))
+    and verified on the whole clip; should it miss, the first setting is). ``depth``: the lifting depth, when
+    known (e.g. chosen on another base of the same clip)."""
+    depths = [depth] if depth is not None else [max(1, clip.levels + d) for d in DEPTHS]
+    settings = list(dict.fromkeys((r, dp) for dp in depths for r in RELAXES))
     parts = _windows(clip, base)
     if parts[0][0] is clip:
         tried = [bound_search(clip, base, target, r, depth) for r, depth in settings]

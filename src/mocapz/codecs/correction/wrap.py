@@ -117,7 +117,8 @@ def corrected(encode: Encoder, decode: Decoder, codec: str, declared: tuple[Opti
         if zero_base and not fixed:
             zero = {"c.gaps": pack_mask(motion.missing)} if isinstance(motion, MarkerMotion) \
                 and motion.missing.any() else {}
-            tried.append((BASE_NONE, _size(zero), zero, search(clip, np.zeros_like(clip.values), target)))
+            depth = tried[0][3].depth if tried else None  # the model's lifting depth (a search of its own costs)
+            tried.append((BASE_NONE, _size(zero), zero, search(clip, np.zeros_like(clip.values), target, depth)))
         kind, _, base_sections, cor = min(tried, key=lambda t: t[1] + t[3].size)
         if not target.met(cor.errors):
             raise TargetError(f"{motion.metadata.get('path', motion.name)}: the {codec} codec with its correction "
