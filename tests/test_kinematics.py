@@ -33,3 +33,18 @@ def test_local_rotations_equal_scipy_on_real_skeletons(rel: str) -> None:
         r = Rotation.from_euler(order, ch[:, [sl.start + chs.index(f"{a}rotation") for a in order]] * scale)
         want = sk.axis[j] @ r.as_matrix() @ sk.axis[j].T
         assert np.abs(got[:, j] - want).max() < 1e-14, (rel, j)
+
+
+@pytest.mark.parametrize("order", ["XYZ", "XZY", "YXZ", "YZX", "ZXY", "ZYX"])
+def test_euler_angles_invert_euler_rotations(order: str) -> None:
+    """Angles back from the rotations (the middle one in [-90, 90] degrees), gimbal lock included."""
+    from mocapz.model.kinematics import euler_angles
+
+    rng = np.random.default_rng(1)
+    a = rng.uniform(-np.pi, np.pi, (500, 3))
+    a[:, 1] = rng.uniform(-1.5, 1.5, 500)
+    a[:5, 1], a[5:10, 1] = np.pi / 2, -np.pi / 2
+    r = euler_rotations(a, order)
+    b = euler_angles(r, order)
+    assert np.abs(euler_rotations(b, order) - r).max() < 1e-12
+    assert np.abs(b[10:] - a[10:]).max() < 1e-12
