@@ -3,8 +3,8 @@ coded so that every point of every frame meets its position bound, verified by f
 
 :class:`Clip` holds what does not depend on the model (original values and positions, the layout, the foot
 contacts); :func:`fit` codes the residual of one decoded base for one position bound ``E`` and returns the
-correction (its sections and the corrected positions); :func:`search` finds the largest ``E`` that also
-meets a distortion or ARMS target.
+correction (its sections and the corrected positions); :func:`bound_search` finds the largest ``E`` that also
+meets a distortion or ARMS target, and :func:`search` the lifting depth that codes the clip smallest.
 """
 
 from __future__ import annotations
@@ -78,7 +78,8 @@ class Clip:
 
     Args:
         motion: the original.
-        hold_feet: keep planted feet within :data:`FOOT_CM` on their contact frames.
+        hold_feet: keep planted feet still on their contact frames (the speed they gain is verified,
+            :meth:`skate`, at most :data:`SKATE_CM_S`).
     """
 
     def __init__(self, motion: AnyMotion, hold_feet: bool) -> None:
