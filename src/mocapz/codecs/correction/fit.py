@@ -323,10 +323,10 @@ def search(clip: Clip, base: np.ndarray, target: Target, depth: int | None = Non
     settings = list(dict.fromkeys((r, dp) for dp in depths for r in RELAXES))
     parts = _windows(clip, base)
     if parts[0][0] is clip:
-        tried = [bound_search(clip, base, target, r, depth) for r, depth in settings]
+        tried = [bound_search(clip, base, target, r, dp) for r, dp in settings]
         met = [c for c in tried if target.met(c.errors)]
         return min(met, key=lambda c: c.size) if met else tried[0]
-    sizes = [sum(bound_search(c, b, target, r, depth).size for c, b in parts) for r, depth in settings]
+    sizes = [sum(bound_search(c, b, target, r, dp).size for c, b in parts) for r, dp in settings]
     chosen = settings[int(np.argmin(sizes))]
     best = bound_search(clip, base, target, *chosen)
     if not target.met(best.errors) and chosen != settings[0]:
