@@ -28,6 +28,7 @@ CODER_RANGE_PACKED = 3  # as CODER_RANGE, its scale bytes zstd-packed (uvarint l
 
 LIMIT = (1 << 15) - 1  # |symbol| < LIMIT coded directly; LIMIT marks an escape
 BLOCK = 256  # rows per scale block
+SPARSE = 0.25  # a matrix with at most this share of non-zeros is also tried as zstd byte planes
 MAX_COUNT = 1 << 31  # most values in one integer stream
 SCALE_STEPS = 8  # scale quantisation: s = 2 ** ((q - 64) / 8)
 
@@ -183,7 +184,9 @@ def encode_int_matrix(values: np.ndarray, coder: int | None = None) -> bytes:
     """Entropy-code a ``(rows, columns)`` integer matrix (e.g. prediction residuals).
 
     Columns are modelled independently with a Laplace scale per block of 256 rows; best for
-    zero-centred residuals. Returns a self-describing byte string (shape included).
+    zero-centred residuals. A mostly-zero matrix whose non-zeros come in runs (tightening levels, the
+    finest lifting details, clustered on a few frames) is smaller as zstd-packed byte planes, which the
+    encoder then chooses (``coder`` None). Returns a self-describing byte string (shape included).
     """
     v = np.asarray(values, dtype=np.int64)
     if v.ndim == 1:
@@ -191,7 +194,14 @@ def encode_int_matrix(values: np.ndarray, coder: int | None = None) -> bytes:
     rows, cols = v.shape
     head = write_uvarint(rows) + write_uvarint(cols)
     if coder is None:
-        coder = CODER_RANGE if HAVE_CONSTRICTION else CODER_ZSTD
+        if not HAVE_CONSTRICTION:
+            coder = CODER_ZSTD
+        else:
+            ranged = encode_int_matrix(v, CODER_RANGE)
+            if v.size == 0 or np.count_nonzero(v) > SPARSE * v.size:
+                return ranged
+            packed = encode_int_matrix(v, CODER_ZSTD)
+            return packed if len(packed) < len(ranged) else ranged
     if coder == CODER_ZSTD or v.size == 0:
         return bytes([CODER_ZSTD]) + head + pack_uint64(zigzag(v.T))
     q = _block_scales(v)
