@@ -71,7 +71,10 @@ TARGETS: dict[str, tuple[dict[str, Any], str, float]] = {
     "1cm": ({"max_error": "1cm"}, "max_err_cm", 1.0),
     "1mm": ({"max_error": "1mm"}, "max_err_cm", 0.1),
     "d0.36": ({"max_distortion": 0.36}, "distortion_pct", 0.36),
+    "arms6.5mm": ({"max_arms": "6.5mm"}, "arms_cm", 0.65),  # marker clips only (the patterns paper's measure)
 }
+MARKER_ONLY = ("arms6.5mm",)
+SUFFIXES = (".bvh", ".amc", ".c3d", ".trc")
 #: relative slack when checking a met target (float rounding between the codec's check and ours)
 SLACK = 1e-6
 
@@ -95,7 +98,8 @@ def clip_id(rel: str) -> str:
 
 def resolve_clips(spec: str | None, quick: bool) -> list[str]:
     """The clips to run: ``--clips`` names (takes like ``09_06``, paths under ../shared/data, or ``cmu14``,
-    ``others``), else the quick set or every clip."""
+    ``others``, ``every``: every BVH, AMC, C3D and TRC file under ../shared/data), else the quick set or the
+    CMU and other clips."""
     if not spec:
         return list(QUICK_CLIPS if quick else CMU14 + OTHERS)
     out: list[str] = []
@@ -104,6 +108,9 @@ def resolve_clips(spec: str | None, quick: bool) -> list[str]:
             out += CMU14
         elif name == "others":
             out += OTHERS
+        elif name == "every":  # every shared motion file, readable or not (a refused file is a row too)
+            out += sorted(str(p.relative_to(DATA)) for p in DATA.rglob("*")
+                          if p.is_file() and p.suffix.lower() in SUFFIXES)
         elif (DATA / name).is_file():
             out.append(name)
         elif (DATA / "cmu" / "bvh" / f"{name}.bvh").is_file():
@@ -195,6 +202,8 @@ def make_tasks(clips: list[str], codecs: list[str], targets: list[str], frames: 
     for clip in clips:
         for codec in codecs:
             for target in targets:
+                if target in MARKER_ONLY and Path(clip).suffix.lower() in (".bvh", ".amc"):
+                    continue
                 out.append(Task(len(out), clip, codec, target, frames, timeout))
     return out
 
@@ -202,7 +211,7 @@ def make_tasks(clips: list[str], codecs: list[str], targets: list[str], frames: 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
     ap.add_argument("--clips", default=None,
-                    help="comma-separated: CMU takes (09_06), paths under ../shared/data, cmu14, others")
+                    help="comma-separated: CMU takes (09_06), paths under ../shared/data, cmu14, others, every")
     ap.add_argument("--codecs", default=",".join(CODECS), help=f"comma-separated lossy codecs ({','.join(CODECS)})")
     ap.add_argument("--targets", default=",".join(TARGETS), help=f"comma-separated ({','.join(TARGETS)})")
     ap.add_argument("--quick", action="store_true", help=f"the {len(QUICK_CLIPS)} quick clips, first "

@@ -20,7 +20,8 @@ ACL_1CM = {"01_01": 13.8, "02_01": 10.3, "02_03": 7.2, "02_05": 16.0, "02_07": 1
            "09_12": 11.4, "12_01": 12.5}
 #: ACL 2.1 over the 14 clips at 1 cm and at 1 mm (issue 11).
 ACL_ALL = {"1cm": 11.7, "1mm": 5.6}
-TITLES = {"1cm": "max error 1 cm", "1mm": "max error 1 mm", "d0.36": "distortion d 0.36 %"}
+TITLES = {"1cm": "max error 1 cm", "1mm": "max error 1 mm", "d0.36": "distortion d 0.36 %",
+          "arms6.5mm": "ARMS 6.5 mm (markers)"}
 #: issue 11's feet criterion at any target up to 2 cm: added skate (cm/s, frame to frame) and jitter (%)
 FEET_SKATE_CM_S, FEET_JITTER_PCT = 0.5, 5.0
 SHORT = {"target failed": "failed", "missed": "missed", "timeout": "timeout", "error": "error", "n/a": "—"}

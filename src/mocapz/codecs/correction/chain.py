@@ -19,12 +19,16 @@ Shapes: values ``(frames, columns)`` in the file's units (angles in the file's a
 
 from __future__ import annotations
 
+import sys
+from types import ModuleType
+
 import numpy as np
 
 from mocapz.codecs.correction import lifting
 from mocapz.model.kinematics import euler_angles, euler_rotations, local_translations
 from mocapz.model.motion import Motion
 
+LAZY_FRAMES = 500  # frames from which the compiled kernels are loaded (when numba is not loaded already)
 MAX_TURN = 0.3  # radians a bone is turned at most to aim at its child (beyond: its global rotation is matched)
 
 
@@ -62,6 +66,10 @@ class Chain:
         for e, (j, _, _) in enumerate(sk.end_sites):
             kids[j].append(sk.n_joints + e)
         self.aim = np.array([k[0] if len(k) == 1 else -1 for k in kids], dtype=np.int64)
+        # per joint with three distinct rotation axes: its columns in `order` and the axes (compiled kernels)
+        self.euler3 = [np.array([sl.start + chs.index(f"{a}rotation") for a in order], dtype=np.int64)
+                       if len(order) == 3 and len(set(order.upper())) == 3 else None
+                       for sl, chs, order in zip(self.slices, sk.channels, sk.rotation_order, strict=True)]
 
     def levers(self, channels: np.ndarray) -> np.ndarray:
         """``(joints,)`` how far a rotation error of each joint moves a point (per radian, file units): the
@@ -79,11 +87,13 @@ class Chain:
         return out
 
     def quantise(self, x: np.ndarray, base: np.ndarray, tol: np.ndarray, levels: int,
-                 shrink: float) -> tuple[np.ndarray, np.ndarray]:
+                 shrink: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """:func:`~mocapz.codecs.correction.lifting.quantise` in closed loop: the residual of every feedback
         joint's rotation columns is taken against the decoded parent; ``x`` ``(frames, columns)`` is the plain
         residual (original minus ``base``, wrapped) used for every other column. Returns the integers and the
-        decoded residual, as :func:`~mocapz.codecs.correction.lifting.quantise`."""
+        decoded residual, as :func:`~mocapz.codecs.correction.lifting.quantise`, and the decoded positions
+        ``(frames, points, 3)`` (the forward kinematics of ``base`` plus the decoded residual, joints then end
+        sites: the loop has composed them already)."""
         sk = self.skeleton
         frames, cols = x.shape
         x = x.copy()
@@ -93,6 +103,7 @@ class Chain:
         g_dec = np.empty((frames, sk.n_joints, 3, 3))
         p_dec = np.empty((frames, sk.n_joints, 3))
         half = self.period / 2
+        kern = kernels(frames)
         for j in range(sk.n_joints):
             sl = self.slices[j]
             p = sk.parents[j]
@@ -102,23 +113,57 @@ class Chain:
             if plain.size:  # translations, and rotations coded against their own original
                 q[:, plain], y[:, plain] = lifting.quantise(x[:, plain], tol[:, plain], levels, shrink)
             trans = self._translation(j, base[:, sl] + y[:, sl])
-            p_dec[:, j] = trans if p < 0 else p_dec[:, p] + np.einsum("fab,fb->fa", g_dec[:, p], trans)
+            if kern is not None:
+                kern.place(g_dec, p_dec, j, p, trans)
+            else:
+                p_dec[:, j] = trans if p < 0 else p_dec[:, p] + np.einsum("fab,fb->fa", g_dec[:, p], trans)
             if rot is not None:
-                goal = self.global_rot[:, j]
-                if self.aim[j] >= 0:  # turn the bone to point from the decoded joint at the original child
-                    goal = _turn(self.positions[:, self.aim[j]] - self.positions[:, j],
-                                 self.positions[:, self.aim[j]] - p_dec[:, j], MAX_TURN) @ goal
-                target = g_dec[:, p].swapaxes(1, 2) @ goal
-                if self.turned[j]:
-                    a = self.skeleton.axis[j]  # type: ignore[index]
-                    target = a.T @ target @ a
-                angles = self._euler(target, sk.rotation_order[j], self.values[:, rot])
+                angles = self._goal_angles(j, g_dec, p_dec, kern)
                 x[:, rot] = np.mod(angles - base[:, rot] + half, self.period) - half
                 q[:, rot], y[:, rot] = lifting.quantise(x[:, rot], tol[:, rot], levels, shrink)
+            cols = self.euler3[j]
+            if kern is not None and cols is not None:
+                kern.compose(g_dec, j, p, np.ascontiguousarray(base[:, cols] + y[:, cols]), self.scale,
+                             _axes(sk.rotation_order[j]), self._axis(j), self.turned[j])
+                continue
             g_dec[:, j] = self._local(j, base[:, sl] + y[:, sl])
             if p >= 0:
                 g_dec[:, j] = g_dec[:, p] @ g_dec[:, j]
-        return q, y
+        pos = np.empty((frames, sk.n_points, 3))
+        pos[:, : sk.n_joints] = p_dec
+        for e, (j, off, _) in enumerate(sk.end_sites):
+            pos[:, sk.n_joints + e] = p_dec[:, j] + g_dec[:, j] @ np.asarray(off)
+        return q, y, pos
+
+    def _goal_angles(self, j: int, g_dec: np.ndarray, p_dec: np.ndarray, kern: ModuleType | None) -> np.ndarray:
+        """Euler angles ``(frames, 3)`` (file unit, nearest the original's) of feedback joint ``j``'s local
+        rotation that gives back its original global rotation under its decoded parent (global rotations
+        ``g_dec`` ``(frames, joints, 3, 3)``), the bone turned first to point from the decoded joint (positions
+        ``p_dec`` ``(frames, joints, 3)``) at the original child."""
+        sk = self.skeleton
+        p, aim, rot, order = sk.parents[j], int(self.aim[j]), self.rot_cols[j], sk.rotation_order[j]
+        if kern is not None:
+            out = np.empty((g_dec.shape[0], 3))
+            i, k, m = ("XYZ".index(a) for a in order.upper())
+            kern.goal_angles(g_dec, p_dec, j, p, self.global_rot, self.positions, aim, float(np.cos(MAX_TURN)),
+                             self._axis(j), self.turned[j], np.array([i, k, m], dtype=np.int64),
+                             1.0 if (k - i) % 3 == 1 else -1.0, self.scale,
+                             np.ascontiguousarray(self.values[:, rot]), self.period, out)
+            return out
+        goal = self.global_rot[:, j]
+        if aim >= 0:  # turn the bone to point from the decoded joint at the original child
+            goal = _turn(self.positions[:, aim] - self.positions[:, j], self.positions[:, aim] - p_dec[:, j],
+                         MAX_TURN) @ goal
+        target = g_dec[:, p].swapaxes(1, 2) @ goal
+        if self.turned[j]:
+            a = self._axis(j)
+            target = a.T @ target @ a
+        return self._euler(target, order, self.values[:, rot])
+
+    def _axis(self, j: int) -> np.ndarray:
+        """The joint's axis frame ``(3, 3)`` (the identity but for ASF joints with axes)."""
+        axis = self.skeleton.axis
+        return np.eye(3) if axis is None else np.ascontiguousarray(axis[j], dtype=np.float64)
 
     def _translation(self, j: int, values: np.ndarray) -> np.ndarray:
         """Local translation ``(frames, 3)`` of joint ``j`` from its decoded channel values (its offset where
@@ -161,6 +206,26 @@ class Chain:
                 best = np.where(closer[:, None], s, best)
         assert best is not None
         return best
+
+
+def _axes(order: str) -> np.ndarray:
+    return np.array(["XYZ".index(a) for a in order.upper()], dtype=np.int64)
+
+
+def kernels(frames: int) -> ModuleType | None:
+    """The compiled kernels (:mod:`.chainkernels`) for a clip of ``frames`` frames, or None: without numba, when
+    turned off (:func:`mocapz.codecs.pga.ikjit.set_enabled`, ``MOCAPZ_NO_NUMBA``), or on a short clip while
+    numba is not loaded yet (loading it costs more than the NumPy path spends there)."""
+    from mocapz.codecs.pga import ikjit  # the one switch of the compiled kernels (here: no import cycle)
+
+    if not ikjit.enabled() or (frames < LAZY_FRAMES and "numba" not in sys.modules) \
+            or not ikjit.room_to_compile():
+        return None
+    try:
+        from mocapz.codecs.correction import chainkernels
+    except ImportError:  # numba not installed
+        return None
+    return chainkernels
 
 
 def _turn(a: np.ndarray, b: np.ndarray, most: float) -> np.ndarray:

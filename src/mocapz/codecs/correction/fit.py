@@ -3,21 +3,20 @@ coded so that every point of every frame meets its position bound, verified by f
 
 :class:`Clip` holds what does not depend on the model (original values and positions, the layout, the foot
 contacts); :func:`fit` codes the residual of one decoded base for one position bound ``E`` and returns the
-correction (its sections and the corrected positions); :func:`bound_search` finds the largest ``E`` that also
-meets a distortion or ARMS target, and :func:`search` the lifting depth that codes the clip smallest.
+correction (its sections and the corrected positions). :mod:`.search` chooses the bound and the settings.
 """
 
 from __future__ import annotations
 
 import math
 import warnings
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 
 from mocapz.codecs.correction import bounds, context, feet, lifting
 from mocapz.codecs.correction.chain import Chain
-from mocapz.codecs.target import ErrorMetric, Errors, Target
+from mocapz.codecs.target import ErrorMetric, Errors
 from mocapz.format.entropy import encode_int_matrix, pack_uint64
 from mocapz.metrics.contacts import find_contacts
 from mocapz.model.kinematics import forward_kinematics
@@ -31,7 +30,6 @@ SHRINK = 0.85  # tolerance factor per lifting level (lifting.level_factor): smoo
 WIDEN = 2  # frames tightened on each side of a miss
 VERIFY = 1.0 - 1e-6  # verified against the bound less a hair (the decoder's angle wrapping, float rounding)
 MAX_ROUNDS = 40  # verification rounds (each raises levels by one; the safe levels end it earlier)
-SEARCH_FITS = 10
 JITTER = 0.045  # added acceleration energy allowed (fraction of the original's), tightened beyond
 JITTER_UP_TO_CM = 2.0  # targets up to this bound keep the added jitter under JITTER
 JITTER_LEVELS = 8  # how far beyond the safe levels the jitter may tighten (2 ** 4 finer)
@@ -189,12 +187,15 @@ class Clip:
         eb = np.where(ok, (np.diff(np.nan_to_num(pos), 2, axis=0) ** 2).sum(axis=2), 0.0)
         return float(eb.sum()) - float(ea.sum())
 
-    def quantise(self, x: np.ndarray, base: np.ndarray, tol: np.ndarray, depth: int) -> tuple[np.ndarray, np.ndarray]:
+    def quantise(self, x: np.ndarray, base: np.ndarray, tol: np.ndarray,
+                 depth: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """The residual ``x`` of decoded ``base`` values quantised within ``tol`` (all ``(frames, columns)``):
-        in closed loop down the hierarchy for skeletons (:mod:`.chain`)."""
+        in closed loop down the hierarchy for skeletons (:mod:`.chain`). Returns the integers, the decoded
+        residual and the decoded positions ``(frames, points, 3)``."""
         if self.chain is not None:
             return self.chain.quantise(x, base, tol, depth, self.shrink)
-        return lifting.quantise(x, tol, depth, self.shrink)
+        q, y = lifting.quantise(x, tol, depth, self.shrink)
+        return q, y, self.positions_of(base + y)
 
     def positions_of(self, values: np.ndarray) -> np.ndarray:
         """Positions ``(frames, points, 3)`` of decoded values ``(frames, columns)``."""
@@ -248,17 +249,19 @@ def fit(clip: Clip, base: np.ndarray, e: float, relax_by: float = bounds.RELAX, 
     cap_jitter = cap + JITTER_LEVELS
     smooth = e <= clip.smooth_up_to()
     jit = 0.0
+    last = None  # the coding of the current levels
     for _ in range(MAX_ROUNDS):
-        q, y = clip.quantise(x, base, bounds.tolerances(t0, lay, levels), depth)
-        pos = clip.positions_of(base + y)
+        q, y, pos = last = clip.quantise(x, base, bounds.tolerances(t0, lay, levels), depth)
         with np.errstate(invalid="ignore"):
             err = np.linalg.norm(pos - clip.positions, axis=2)
         misses = valid & ~(err <= bound * VERIFY)
         limit, step, only = cap, 1, None
-        if not misses.any() and smooth:  # every bound holds: then the added acceleration energy and foot speed
-            jit, misses = clip.jitter(pos)
-            limit, step = cap_jitter, 2
-            if jit <= JITTER:
+        if not misses.any():  # every bound holds: then the added acceleration energy (up to 2 cm) and foot speed
+            limit = cap_jitter
+            if smooth:
+                jit, misses = clip.jitter(pos)
+                step = 2
+            if not misses.any():
                 skate, misses = clip.skate(pos)
                 if skate <= clip.skate_limit():
                     break
@@ -274,7 +277,8 @@ def fit(clip: Clip, base: np.ndarray, e: float, relax_by: float = bounds.RELAX, 
         if not bounds.tighten(levels, limit, lay, misses, step, only) and (
                 only is None or not bounds.tighten(levels, limit, lay, misses, step)):  # then every joint above
             break
-    q, y, pos = _settle(clip, x, base, t0, levels, cap, bound, depth)
+        last = None
+    q, y, pos = _settle(clip, x, base, t0, levels, cap, bound, depth, last)
     sections = {
         "c.codes": pack_uint64(codes.astype(np.uint64)),
         "c.levels": encode_int_matrix(np.diff(levels, axis=0, prepend=0)),
@@ -285,15 +289,17 @@ def fit(clip: Clip, base: np.ndarray, e: float, relax_by: float = bounds.RELAX, 
 
 
 def _settle(clip: Clip, x: np.ndarray, base: np.ndarray, t0: np.ndarray, levels: np.ndarray, cap: np.ndarray,
-            bound: np.ndarray, depth: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+            bound: np.ndarray, depth: int, last: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
+            ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The last word on the bound: the rounds of :func:`fit` may end (jitter tightening undoing a bound met one
     round before) with a few points over their bound; the groups acting on them go straight to their safe
     level, where the worst-case sum holds, until none is over (at worst every group at its safe level).
-    Returns the integers, the decoded residual and the corrected positions; ``levels`` is raised in place."""
+    Returns the integers, the decoded residual and the corrected positions; ``levels`` is raised in place.
+    ``last``: the coding of ``levels`` as they are, when the caller has it."""
     lay = clip.layout
     for _ in range(MAX_ROUNDS):
-        q, y = clip.quantise(x, base, bounds.tolerances(t0, lay, levels), depth)
-        pos = clip.positions_of(base + y)
+        q, y, pos = last if last is not None else clip.quantise(x, base, bounds.tolerances(t0, lay, levels), depth)
+        last = None
         with np.errstate(invalid="ignore"):
             misses = clip.valid & ~(np.linalg.norm(pos - clip.positions, axis=2) <= bound * VERIFY)
         if not misses.any():
@@ -305,92 +311,3 @@ def _settle(clip: Clip, x: np.ndarray, base: np.ndarray, t0: np.ndarray, levels:
                 break
         levels[up] = cap[up]
     return q, y, pos
-
-
-RELAXES = (16.0,)  # relax_by tried: how far errors fall short of the worst case (8, 11.3, 22.6 and 32 gave
-# larger files on the CMU clips)
-DEPTHS = (0, -1, -2)  # lifting levels tried, added to the clip's (knots a quarter, an eighth, a sixteenth of a
-# second apart: which codes a clip smallest depends on its motion)
-SAMPLE_S = 6.0  # a long clip's settings are chosen on two windows of this many seconds, then coded whole
-
-
-def search(clip: Clip, base: np.ndarray, target: Target, depth: int | None = None) -> Correction:
-    """The smallest correction meeting ``target``: each setting of :data:`RELAXES` x :data:`DEPTHS` is tried
-    with :func:`bound_search` (on two windows of a long clip: a prediction, then the chosen setting is coded
-    and verified on the whole clip; should it miss, the first setting is). ``depth``: the lifting depth, when
-    known (e.g. chosen on another base of the same clip)."""
-    depths = [depth] if depth is not None else [max(1, clip.levels + d) for d in DEPTHS]
-    settings = list(dict.fromkeys((r, dp) for dp in depths for r in RELAXES))
-    parts = _windows(clip, base)
-    if parts[0][0] is clip:
-        tried = [bound_search(clip, base, target, r, dp) for r, dp in settings]
-        met = [c for c in tried if target.met(c.errors)]
-        return min(met, key=lambda c: c.size) if met else tried[0]
-    sizes = [sum(bound_search(c, b, target, r, dp).size for c, b in parts) for r, dp in settings]
-    chosen = settings[int(np.argmin(sizes))]
-    best = bound_search(clip, base, target, *chosen)
-    if not target.met(best.errors) and chosen != settings[0]:
-        best = bound_search(clip, base, target, *settings[0])
-    return best
-
-
-def _windows(clip: Clip, base: np.ndarray) -> list[tuple[Clip, np.ndarray]]:
-    """The clip itself, or for a long clip (over three windows of :data:`SAMPLE_S`; not a block, whose
-    decisions are the whole clip's) two windows centred at a third and two thirds of it."""
-    motion = clip.motion
-    w = max(256, int(SAMPLE_S * motion.frame_rate))
-    n = motion.n_frames
-    if n <= 3 * w or clip.whole is not None:
-        return [(clip, base)]
-    out = []
-    for centre in (n // 3, 2 * n // 3):
-        a = max(0, centre - w // 2)
-        sub = motion.slice(a, a + w)
-        sub = replace(sub, metadata={k: v for k, v in sub.metadata.items() if k != "block_of"})
-        out.append((Clip(sub, clip.contacts is not None), base[a:a + w]))
-    return out
-
-
-def bound_search(clip: Clip, base: np.ndarray, target: Target, relax_by: float, depth: int) -> Correction:
-    """The correction with the largest bound meeting ``target`` (the bound is at most ``max_error``; for a
-    distortion or ARMS target, secant steps in log space inside the bracket of met and missed bounds, at most
-    :data:`SEARCH_FITS` fits)."""
-    e_cap = target.max_error
-    if target.max_distortion is None and target.max_arms is None:
-        assert e_cap is not None
-        return fit(clip, base, e_cap, relax_by, depth)
-    guesses = []
-    if target.max_arms is not None:
-        guesses.append(2.0 * target.max_arms)
-    if target.max_distortion is not None:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", RuntimeWarning)
-            present = np.where(clip.valid[..., None], clip.positions, np.nan)
-            spread = float(np.nan_to_num(np.sqrt(np.nanmean((present - np.nanmean(present, axis=0)) ** 2) * 3)))
-        guesses.append(2.0 * target.max_distortion / 100.0 * max(spread, 1e-12))
-    base_errors = clip.metric.of_positions(clip.positions_of(base))
-    if target.met(base_errors) and base_errors.max_error > 0:  # the model alone meets it: hold feet, bound the rest
-        guesses = [base_errors.max_error * 1.001]
-    e = min(guesses + ([e_cap] if e_cap is not None else []))
-    best: Correction | None = None  # the largest bound met so far
-    low_fail = math.inf  # the smallest bound missed so far
-    cur = fit(clip, base, e, relax_by, depth)
-    for _ in range(SEARCH_FITS):
-        score = target.score(cur.errors)
-        if score <= 1:
-            best = cur if best is None or cur.bound > best.bound else best
-        else:
-            low_fail = min(low_fail, cur.bound)
-        # secant in log space (the figures grow about linearly with the bound), kept inside the bracket
-        nxt = cur.bound * float(np.clip(0.95 / max(score, 1e-9), 0.25, 4.0))
-        if e_cap is not None:
-            nxt = min(nxt, e_cap)
-        lo = best.bound if best is not None else 0.0
-        if not lo < nxt < low_fail:
-            nxt = math.sqrt(lo * low_fail) if lo > 0 and math.isfinite(low_fail) else (
-                lo * 2.0 if lo > 0 else low_fail / 2.0)
-        if (best is not None and (nxt <= best.bound * 1.08 or (e_cap is not None and best.bound >= e_cap)))\
-                or (math.isfinite(low_fail) and nxt >= low_fail / 1.08 and best is not None):
-            break
-        cur = fit(clip, base, nxt, relax_by, depth)
-    return best if best is not None else cur

@@ -5,7 +5,7 @@
 1. resolve the target (the user's, or the default one: max error 1 cm on every point, feet held);
 2. encode the clip with the codec's own model (its own or the user's settings; pga and patterns may run
    their own search for a distortion / ARMS target, see ``base_options``; a model missing that falls back
-   to its settings), decode it, and code the residual with :func:`~mocapz.codecs.correction.fit.search`
+   to its settings), decode it, and code the residual with :func:`~mocapz.codecs.correction.search.search`
    so that every bound holds on the decoded result; the same is tried on a zero base (the correction
    alone) and the smaller file is kept;
 3. refuse only a max-error target tighter than the source's own decimals.
@@ -24,7 +24,8 @@ from typing import Any
 import numpy as np
 
 from mocapz.codecs.correction import bounds, context, lifting
-from mocapz.codecs.correction.fit import Clip, Correction, search, value_matrix
+from mocapz.codecs.correction.fit import Clip, Correction, value_matrix
+from mocapz.codecs.correction.search import search
 from mocapz.codecs.gaps import pack_mask, unpack_mask
 from mocapz.codecs.options import Length, Option
 from mocapz.codecs.target import TARGET_NAMES, Target

@@ -29,6 +29,12 @@ def set_enabled(on: bool) -> bool:
     return old
 
 
+def enabled() -> bool:
+    """Whether compiled kernels (of any codec) may be used: numba is not turned off (:func:`set_enabled`,
+    ``MOCAPZ_NO_NUMBA``)."""
+    return _ENABLED
+
+
 def kernels() -> dict[str, Any] | None:
     """The compiled kernels by name, or None without numba (or when disabled)."""
     global _KERNELS
@@ -40,7 +46,7 @@ def kernels() -> dict[str, Any] | None:
         except ImportError:
             _KERNELS = {}
         else:
-            if not _room_to_compile():
+            if not room_to_compile():
                 return None  # the NumPy path this time; the kernels are compiled (or loaded) on a later call
             _KERNELS = _compile()
     return _KERNELS or None
@@ -49,7 +55,7 @@ def kernels() -> dict[str, Any] | None:
 COMPILE_ROOM = 1 << 30  # bytes of address space numba / LLVM may need to compile or load the kernels
 
 
-def _room_to_compile() -> bool:
+def room_to_compile() -> bool:
     """False under an address-space cap leaving less than :data:`COMPILE_ROOM` (LLVM aborts the whole process
     when it runs out of memory: a caller that caps memory, as the hostile-file tests do around every decode,
     gets the NumPy path instead)."""

@@ -1,0 +1,173 @@
+"""Compiled (numba) kernels of the closed loop of :mod:`mocapz.codecs.correction.chain` (imported only when
+numba is installed; module-level functions, so that numba's on-disk cache keeps them across processes).
+
+They do, one frame at a time in one pass, what :meth:`~mocapz.codecs.correction.chain.Chain.quantise` does
+over frames with a dozen NumPy steps per joint (each a pass over ``(frames, 3, 3)`` arrays): the decoded
+joint's position, the bone's turn toward the original child, the local rotation wanted under the decoded
+parent and its Euler angles nearest the original's (:func:`goal_angles`), then the decoded joint's global
+rotation (:func:`compose`). The results agree with the NumPy path to float rounding
+(tests/test_correction_jit.py).
+
+Shapes: ``g`` ``(frames, joints, 3, 3)`` decoded global rotations, ``p`` ``(frames, joints, 3)`` decoded
+positions (file units), angles in the file's angle unit (``scale`` converts them to radians).
+"""
+
+# ruff: noqa: ANN001, ANN202
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+jit = njit(cache=True, nogil=True, error_model="numpy")
+
+
+@jit
+def _axis_rot(axis: int, t: float, out: np.ndarray) -> None:
+    """Rotation about coordinate axis ``axis`` by ``t`` radians into ``out`` (3, 3)."""
+    c, s = math.cos(t), math.sin(t)
+    i, k = (axis + 1) % 3, (axis + 2) % 3
+    for a in range(3):
+        for b in range(3):
+            out[a, b] = 0.0
+    out[axis, axis] = 1.0
+    out[i, i] = c
+    out[k, k] = c
+    out[i, k] = -s
+    out[k, i] = s
+
+
+@jit
+def _euler(angles: np.ndarray, axes: np.ndarray, r: np.ndarray) -> None:
+    """Intrinsic Euler rotation of three ``angles`` (radians) about ``axes`` into ``r`` (3, 3), as
+    :func:`mocapz.model.kinematics.euler_rotations`."""
+    _axis_rot(axes[0], angles[0], r)
+    for k in range(1, 3):
+        axis = axes[k]
+        i, j = (axis + 1) % 3, (axis + 2) % 3
+        c, s = math.cos(angles[k]), math.sin(angles[k])
+        for a in range(3):
+            ci, cj = r[a, i], r[a, j]
+            r[a, i] = c * ci + s * cj
+            r[a, j] = c * cj - s * ci
+
+
+@jit
+def _mul(a: np.ndarray, b: np.ndarray, out: np.ndarray) -> None:
+    for i in range(3):
+        for k in range(3):
+            out[i, k] = a[i, 0] * b[0, k] + a[i, 1] * b[1, k] + a[i, 2] * b[2, k]
+
+
+@jit
+def _mul_t(a: np.ndarray, b: np.ndarray, out: np.ndarray) -> None:
+    """``a.T @ b``."""
+    for i in range(3):
+        for k in range(3):
+            out[i, k] = a[0, i] * b[0, k] + a[1, i] * b[1, k] + a[2, i] * b[2, k]
+
+
+@jit
+def place(g, p, j: int, parent: int, trans) -> None:
+    """Decoded position of joint ``j`` from its local translations ``trans`` ``(frames, 3)``."""
+    for f in range(trans.shape[0]):
+        for a in range(3):
+            if parent < 0:
+                p[f, j, a] = trans[f, a]
+            else:
+                p[f, j, a] = p[f, parent, a] + g[f, parent, a, 0] * trans[f, 0] \
+                    + g[f, parent, a, 1] * trans[f, 1] + g[f, parent, a, 2] * trans[f, 2]
+
+
+@jit
+def goal_angles(g, p, j: int, parent: int, global_rot, positions, aim: int, cos_most: float, axis,
+                turned: bool, ijk, sign: float, scale: float, near, period: float, out) -> None:
+    """Euler angles ``out`` ``(frames, 3)`` (file unit, of the two solutions and every turn the nearest
+    ``near``) of the local rotation that, under the decoded parent, gives joint ``j``'s original global
+    rotation, its bone first turned (at most ``acos(cos_most)``) to point from the decoded joint at the
+    original child ``aim`` (-1: none)."""
+    goal = np.empty((3, 3))
+    turn = np.empty((3, 3))
+    tmp = np.empty((3, 3))
+    r = np.empty((3, 3))
+    kk = np.empty((3, 3))
+    i, jj, k = ijk[0], ijk[1], ijk[2]
+    half = period / 2.0
+    for f in range(near.shape[0]):
+        for a in range(3):
+            for b in range(3):
+                goal[a, b] = global_rot[f, j, a, b]
+        if aim >= 0:
+            a0, a1, a2 = (positions[f, aim, 0] - positions[f, j, 0], positions[f, aim, 1] - positions[f, j, 1],
+                          positions[f, aim, 2] - positions[f, j, 2])
+            b0, b1, b2 = positions[f, aim, 0] - p[f, j, 0], positions[f, aim, 1] - p[f, j, 1], \
+                positions[f, aim, 2] - p[f, j, 2]
+            na = math.sqrt(a0 * a0 + a1 * a1 + a2 * a2)
+            nb = math.sqrt(b0 * b0 + b1 * b1 + b2 * b2)
+            if na > 0 and nb > 0:
+                u0, u1, u2 = a0 / na, a1 / na, a2 / na
+                w0, w1, w2 = b0 / nb, b1 / nb, b2 / nb
+                v0, v1, v2 = u1 * w2 - u2 * w1, u2 * w0 - u0 * w2, u0 * w1 - u1 * w0
+                c = u0 * w0 + u1 * w1 + u2 * w2
+                if c > cos_most:
+                    kk[0, 0], kk[0, 1], kk[0, 2] = 0.0, -v2, v1
+                    kk[1, 0], kk[1, 1], kk[1, 2] = v2, 0.0, -v0
+                    kk[2, 0], kk[2, 1], kk[2, 2] = -v1, v0, 0.0
+                    _mul(kk, kk, tmp)
+                    h = 1.0 / (1.0 + max(c, -0.5))
+                    for a in range(3):
+                        for b in range(3):
+                            turn[a, b] = (1.0 if a == b else 0.0) + kk[a, b] + tmp[a, b] * h
+                    _mul(turn, goal, tmp)
+                    goal[:, :] = tmp
+        if parent >= 0:
+            _mul_t(g[f, parent], goal, r)
+        else:
+            r[:, :] = goal
+        if turned:
+            _mul_t(axis, r, tmp)
+            _mul(tmp, axis, r)
+        x = sign * r[i, k]
+        mid = math.asin(min(1.0, max(-1.0, x)))
+        if abs(x) > 1.0 - 1e-12:
+            first = math.atan2(sign * r[k, jj], r[jj, jj])
+            last = 0.0
+        else:
+            first = math.atan2(-sign * r[jj, k], r[k, k])
+            last = math.atan2(-sign * r[i, jj], r[i, i])
+        s0, s1, s2 = first / scale, mid / scale, last / scale
+        t0, t1, t2 = s0 + half, half - s1, s2 + half
+        n0, n1, n2 = near[f, 0], near[f, 1], near[f, 2]
+        s0 += period * np.rint((n0 - s0) / period)
+        s1 += period * np.rint((n1 - s1) / period)
+        s2 += period * np.rint((n2 - s2) / period)
+        t0 += period * np.rint((n0 - t0) / period)
+        t1 += period * np.rint((n1 - t1) / period)
+        t2 += period * np.rint((n2 - t2) / period)
+        if abs(t0 - n0) + abs(t1 - n1) + abs(t2 - n2) < abs(s0 - n0) + abs(s1 - n1) + abs(s2 - n2):
+            s0, s1, s2 = t0, t1, t2
+        out[f, 0], out[f, 1], out[f, 2] = s0, s1, s2
+
+
+@jit
+def compose(g, j: int, parent: int, values, scale: float, axes, axis, turned: bool) -> None:
+    """Decoded global rotation of joint ``j`` into ``g``: the decoded parent's times the local rotation of the
+    decoded Euler ``values`` ``(frames, 3)`` (file unit) about ``axes``, in the joint's ``axis`` frame when
+    ``turned`` (ASF)."""
+    loc = np.empty((3, 3))
+    tmp = np.empty((3, 3))
+    ang = np.empty(3)
+    for f in range(values.shape[0]):
+        for a in range(3):
+            ang[a] = values[f, a] * scale
+        _euler(ang, axes, loc)
+        if turned:
+            _mul(axis, loc, tmp)
+            for a in range(3):
+                for b in range(3):
+                    loc[a, b] = tmp[a, 0] * axis[b, 0] + tmp[a, 1] * axis[b, 1] + tmp[a, 2] * axis[b, 2]
+        if parent >= 0:
+            _mul(g[f, parent], loc, g[f, j])
+        else:
+            g[f, j, :, :] = loc

@@ -1,0 +1,104 @@
+"""The settings of the correction layer for a target: the position bound that meets a distortion or ARMS target
+(:func:`bound_search`) and the lifting depth that codes the clip smallest (:func:`search`), each candidate
+coded by :func:`.fit.fit` and verified.
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+from dataclasses import replace
+
+import numpy as np
+
+from mocapz.codecs.correction.fit import Clip, Correction, fit
+from mocapz.codecs.target import Target
+
+SEARCH_FITS = 10  # fits a distortion or ARMS target's bound search makes at most
+RELAXES = (16.0,)  # relax_by tried: how far errors fall short of the worst case (8, 11.3, 22.6 and 32 gave
+# larger files on the CMU clips)
+DEPTHS = (0, -1, -2)  # lifting levels tried, added to the clip's (knots a quarter, an eighth, a sixteenth of a
+# second apart: which codes a clip smallest depends on its motion)
+SAMPLE_S = 6.0  # a long clip's settings are chosen on two windows of this many seconds, then coded whole
+
+
+def search(clip: Clip, base: np.ndarray, target: Target, depth: int | None = None) -> Correction:
+    """The smallest correction meeting ``target``: each setting of :data:`RELAXES` x :data:`DEPTHS` is tried
+    with :func:`bound_search` (on two windows of a long clip: a prediction, then the chosen setting is coded
+    and verified on the whole clip; should it miss, the first setting is). ``depth``: the lifting depth, when
+    known (e.g. chosen on another base of the same clip)."""
+    depths = [depth] if depth is not None else [max(1, clip.levels + d) for d in DEPTHS]
+    settings = list(dict.fromkeys((r, dp) for dp in depths for r in RELAXES))
+    parts = _windows(clip, base)
+    if parts[0][0] is clip:
+        tried = [bound_search(clip, base, target, r, dp) for r, dp in settings]
+        met = [c for c in tried if target.met(c.errors)]
+        return min(met, key=lambda c: c.size) if met else tried[0]
+    sizes = [sum(bound_search(c, b, target, r, dp).size for c, b in parts) for r, dp in settings]
+    chosen = settings[int(np.argmin(sizes))]
+    best = bound_search(clip, base, target, *chosen)
+    if not target.met(best.errors) and chosen != settings[0]:
+        best = bound_search(clip, base, target, *settings[0])
+    return best
+
+
+def _windows(clip: Clip, base: np.ndarray) -> list[tuple[Clip, np.ndarray]]:
+    """The clip itself, or for a long clip (over three windows of :data:`SAMPLE_S`; not a block, whose
+    decisions are the whole clip's) two windows centred at a third and two thirds of it."""
+    motion = clip.motion
+    w = max(256, int(SAMPLE_S * motion.frame_rate))
+    n = motion.n_frames
+    if n <= 3 * w or clip.whole is not None:
+        return [(clip, base)]
+    out = []
+    for centre in (n // 3, 2 * n // 3):
+        a = max(0, centre - w // 2)
+        sub = motion.slice(a, a + w)
+        sub = replace(sub, metadata={k: v for k, v in sub.metadata.items() if k != "block_of"})
+        out.append((Clip(sub, clip.contacts is not None), base[a:a + w]))
+    return out
+
+
+def bound_search(clip: Clip, base: np.ndarray, target: Target, relax_by: float, depth: int) -> Correction:
+    """The correction with the largest bound meeting ``target`` (the bound is at most ``max_error``; for a
+    distortion or ARMS target, secant steps in log space inside the bracket of met and missed bounds, at most
+    :data:`SEARCH_FITS` fits)."""
+    e_cap = target.max_error
+    if target.max_distortion is None and target.max_arms is None:
+        assert e_cap is not None
+        return fit(clip, base, e_cap, relax_by, depth)
+    guesses = []
+    if target.max_arms is not None:
+        guesses.append(2.0 * target.max_arms)
+    if target.max_distortion is not None:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)
+            present = np.where(clip.valid[..., None], clip.positions, np.nan)
+            spread = float(np.nan_to_num(np.sqrt(np.nanmean((present - np.nanmean(present, axis=0)) ** 2) * 3)))
+        guesses.append(2.0 * target.max_distortion / 100.0 * max(spread, 1e-12))
+    base_errors = clip.metric.of_positions(clip.positions_of(base))
+    if target.met(base_errors) and base_errors.max_error > 0:  # the model alone meets it: hold feet, bound the rest
+        guesses = [base_errors.max_error * 1.001]
+    e = min(guesses + ([e_cap] if e_cap is not None else []))
+    best: Correction | None = None  # the largest bound met so far
+    low_fail = math.inf  # the smallest bound missed so far
+    cur = fit(clip, base, e, relax_by, depth)
+    for _ in range(SEARCH_FITS):
+        score = target.score(cur.errors)
+        if score <= 1:
+            best = cur if best is None or cur.bound > best.bound else best
+        else:
+            low_fail = min(low_fail, cur.bound)
+        # secant in log space (the figures grow about linearly with the bound), kept inside the bracket
+        nxt = cur.bound * float(np.clip(0.95 / max(score, 1e-9), 0.25, 4.0))
+        if e_cap is not None:
+            nxt = min(nxt, e_cap)
+        lo = best.bound if best is not None else 0.0
+        if not lo < nxt < low_fail:
+            nxt = math.sqrt(lo * low_fail) if lo > 0 and math.isfinite(low_fail) else (
+                lo * 2.0 if lo > 0 else low_fail / 2.0)
+        if (best is not None and (nxt <= best.bound * 1.08 or (e_cap is not None and best.bound >= e_cap)))\
+                or (math.isfinite(low_fail) and nxt >= low_fail / 1.08 and best is not None):
+            break
+        cur = fit(clip, base, nxt, relax_by, depth)
+    return best if best is not None else cur

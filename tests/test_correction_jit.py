@@ -1,0 +1,67 @@
+"""The compiled kernels of the correction's closed loop (:mod:`mocapz.codecs.correction.chainkernels`) give what
+the NumPy path gives: the same integers and decoded residual, positions to float rounding, on real skeletons of
+each kind (CMU BVH, an ASF with joint axes, the iClone rig with its tiny bones), and the same file."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from conftest import data_path
+
+import mocapz
+from mocapz.codecs.correction import bounds, chain
+from mocapz.codecs.correction.fit import Clip
+from mocapz.codecs.pga import ikjit
+
+pytest.importorskip("numba")
+
+CLIPS = [("cmu/bvh/06_10.bvh", 700), ("cmu/asfamc/backflip.amc", None), ("other/asfamc/amcparser/walking.amc", 600),
+         ("cmu/bvh_iclone_ccrig/002_03.bvh", None)]
+
+
+@pytest.fixture
+def kernels_always(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The kernels whatever the clip's length (numpy below :data:`chain.LAZY_FRAMES` otherwise)."""
+    monkeypatch.setattr(chain, "LAZY_FRAMES", 0)
+
+
+def _quantise(clip: Clip, tol: np.ndarray, compiled: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    old = ikjit.set_enabled(compiled)
+    try:
+        assert clip.chain is not None
+        assert (chain.kernels(clip.motion.n_frames) is not None) == compiled
+        base = np.zeros_like(clip.values)
+        return clip.chain.quantise(clip.residual(base), base, tol, 3, 0.85)
+    finally:
+        ikjit.set_enabled(old)
+
+
+@pytest.mark.parametrize(("rel", "frames"), CLIPS)
+def test_kernels_equal_numpy(rel: str, frames: int | None, kernels_always: None) -> None:
+    m = mocapz.load(data_path(rel))
+    m = m if frames is None else m.slice(0, frames)
+    clip = Clip(m, True)
+    lay = clip.layout
+    e = 1.0 / m.unit_cm if m.unit_cm else clip.body / 170.0
+    t0 = bounds.tol_of(bounds.code_for(np.where(lay.moving, 16 * lay.t_safe * e, bounds.TINY * lay.t_safe * e)))
+    rng = np.random.default_rng(7)  # some joints tightened on some frames, as the verification leaves them
+    levels = rng.integers(0, 4, size=(m.n_frames, lay.n_groups))
+    tol = bounds.tolerances(t0, lay, levels)
+    qa, ya, pa = _quantise(clip, tol, True)
+    qb, yb, pb = _quantise(clip, tol, False)
+    assert np.array_equal(qa, qb)
+    assert np.array_equal(ya, yb)
+    scale = float(np.abs(pb).max())
+    assert np.abs(pa - pb).max() <= 1e-12 * scale
+    # and the positions are those of forward kinematics on the decoded values
+    assert np.abs(pa - clip.positions_of(ya)).max() <= 1e-12 * scale
+
+
+def test_same_file_either_path(kernels_always: None) -> None:
+    m = mocapz.load(data_path("cmu/bvh/09_06.bvh"))
+    old = ikjit.set_enabled(False)
+    try:
+        plain = mocapz.compress(m, codec="quant", max_error="1cm")
+    finally:
+        ikjit.set_enabled(old)
+    assert mocapz.compress(m, codec="quant", max_error="1cm") == plain
