@@ -74,6 +74,7 @@ TARGETS: dict[str, tuple[dict[str, Any], str, float]] = {
     "arms6.5mm": ({"max_arms": "6.5mm"}, "arms_cm", 0.65),  # marker clips only (the patterns paper's measure)
 }
 MARKER_ONLY = ("arms6.5mm",)
+DEFAULT_TARGETS = ("1cm", "1mm", "d0.36")
 SUFFIXES = (".bvh", ".amc", ".c3d", ".trc")
 #: relative slack when checking a met target (float rounding between the codec's check and ours)
 SLACK = 1e-6
@@ -213,7 +214,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--clips", default=None,
                     help="comma-separated: CMU takes (09_06), paths under ../shared/data, cmu14, others, every")
     ap.add_argument("--codecs", default=",".join(CODECS), help=f"comma-separated lossy codecs ({','.join(CODECS)})")
-    ap.add_argument("--targets", default=",".join(TARGETS), help=f"comma-separated ({','.join(TARGETS)})")
+    ap.add_argument("--targets", default=",".join(DEFAULT_TARGETS),
+                    help=f"comma-separated ({','.join(TARGETS)}; default {','.join(DEFAULT_TARGETS)})")
     ap.add_argument("--quick", action="store_true", help=f"the {len(QUICK_CLIPS)} quick clips, first "
                     f"{QUICK_FRAMES} frames (unless --clips / --frames say otherwise)")
     ap.add_argument("--frames", type=int, default=None, help="keep only the first N frames of every clip")

@@ -28,6 +28,7 @@ FOOT_REACH = 0.2  # the joints above a foot tightened for its skate reach the fi
 FOOT_START = 2  # levels those joints start tighter than the others on planted frames
 SHRINK = 0.85  # tolerance factor per lifting level (lifting.level_factor): smooth corrections, little jitter
 WIDEN = 2  # frames tightened on each side of a miss
+STALLED = 0.9  # feet whose added speed fell by less than this factor in a round: every joint above them tightened
 VERIFY = 1.0 - 1e-6  # verified against the bound less a hair (the decoder's angle wrapping, float rounding)
 MAX_ROUNDS = 40  # verification rounds (each raises levels by one; the safe levels end it earlier)
 JITTER = 0.045  # added acceleration energy allowed (fraction of the original's), tightened beyond
@@ -250,32 +251,33 @@ def fit(clip: Clip, base: np.ndarray, e: float, relax_by: float = bounds.RELAX, 
     smooth = e <= clip.smooth_up_to()
     jit = 0.0
     last = None  # the coding of the current levels
+    slid = math.inf  # the feet's added speed the round before
     for _ in range(MAX_ROUNDS):
         q, y, pos = last = clip.quantise(x, base, bounds.tolerances(t0, lay, levels), depth)
         with np.errstate(invalid="ignore"):
             err = np.linalg.norm(pos - clip.positions, axis=2)
         misses = valid & ~(err <= bound * VERIFY)
-        limit, step, only = cap, 1, None
-        if not misses.any():  # every bound holds: then the added acceleration energy (up to 2 cm) and foot speed
-            limit = cap_jitter
-            if smooth:
-                jit, misses = clip.jitter(pos)
-                step = 2
-            if not misses.any():
-                skate, misses = clip.skate(pos)
-                if skate <= clip.skate_limit():
-                    break
-                step, only = 1, feet
-        if not misses.any():
-            break
-        if WIDEN and misses.any():  # tighten a few frames around each miss: fewer level changes, smoother
-            grown = misses.copy()
-            for k in range(1, WIDEN + 1):
-                grown[k:] |= misses[:-k]
-                grown[:-k] |= misses[k:]
-            misses = grown
-        if not bounds.tighten(levels, limit, lay, misses, step, only) and (
-                only is None or not bounds.tighten(levels, limit, lay, misses, step)):  # then every joint above
+        # what to tighten this round, each (samples, levels cap, step, groups allowed): the points over their
+        # bound, or once every bound holds the added acceleration energy; and the planted feet's added speed
+        # in the same round (it is mostly the joints above the feet: tightening them with the rest halves the
+        # rounds)
+        todo: list[tuple[np.ndarray, np.ndarray, int, np.ndarray | None]] = []
+        if misses.any():
+            todo.append((misses, cap, 1, None))
+        elif smooth:
+            jit, shaky = clip.jitter(pos)
+            if shaky.any():
+                todo.append((shaky, cap_jitter, 2, None))
+        skate, sliding = clip.skate(pos)
+        if skate > clip.skate_limit() and sliding.any():  # the joints above the feet, or every joint above them
+            todo.append((sliding, cap_jitter, 1, feet if skate < STALLED * slid else None))  # if that did not help
+            slid = skate
+        moved = False
+        for samples, limit, step, only in todo:
+            samples = _widen(samples)
+            moved |= bounds.tighten(levels, limit, lay, samples, step, only) or (
+                only is not None and bounds.tighten(levels, limit, lay, samples, step))  # then every joint above
+        if not moved:
             break
         last = None
     q, y, pos = _settle(clip, x, base, t0, levels, cap, bound, depth, last)
@@ -286,6 +288,16 @@ def fit(clip: Clip, base: np.ndarray, e: float, relax_by: float = bounds.RELAX, 
     }
     size = sum(len(v) + 8 for v in sections.values())
     return Correction(sections, size, pos, clip.metric.of_positions(pos), e, jit, clip.added_energy(pos), depth)
+
+
+def _widen(samples: np.ndarray) -> np.ndarray:
+    """``(frames, points)`` samples to tighten, spread over :data:`WIDEN` frames on each side: a few frames
+    tightened around each miss make fewer level changes, and smoother ones."""
+    out = samples.copy()
+    for k in range(1, WIDEN + 1):
+        out[k:] |= samples[:-k]
+        out[:-k] |= samples[k:]
+    return out
 
 
 def _settle(clip: Clip, x: np.ndarray, base: np.ndarray, t0: np.ndarray, levels: np.ndarray, cap: np.ndarray,

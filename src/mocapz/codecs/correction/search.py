@@ -15,6 +15,7 @@ from mocapz.codecs.correction.fit import Clip, Correction, fit
 from mocapz.codecs.target import Target
 
 SEARCH_FITS = 10  # fits a distortion or ARMS target's bound search makes at most
+LOOSEST = 8.0  # where the model alone meets the target, the bound goes up to this many times its largest error
 RELAXES = (16.0,)  # relax_by tried: how far errors fall short of the worst case (8, 11.3, 22.6 and 32 gave
 # larger files on the CMU clips)
 DEPTHS = (0, -1, -2)  # lifting levels tried, added to the clip's (knots a quarter, an eighth, a sixteenth of a
@@ -25,21 +26,32 @@ SAMPLE_S = 6.0  # a long clip's settings are chosen on two windows of this many 
 def search(clip: Clip, base: np.ndarray, target: Target, depth: int | None = None) -> Correction:
     """The smallest correction meeting ``target``: each setting of :data:`RELAXES` x :data:`DEPTHS` is tried
     with :func:`bound_search` (on two windows of a long clip: a prediction, then the chosen setting is coded
-    and verified on the whole clip; should it miss, the first setting is). ``depth``: the lifting depth, when
-    known (e.g. chosen on another base of the same clip)."""
+    and verified on the whole clip; should it miss, the first setting is). The first setting's bound starts
+    the others' searches (a distortion or ARMS target's bound hardly depends on the setting), and the
+    windows' bound the whole clip's. ``depth``: the lifting depth, when known (e.g. chosen on another base
+    of the same clip)."""
     depths = [depth] if depth is not None else [max(1, clip.levels + d) for d in DEPTHS]
     settings = list(dict.fromkeys((r, dp) for dp in depths for r in RELAXES))
     parts = _windows(clip, base)
     if parts[0][0] is clip:
-        tried = [bound_search(clip, base, target, r, dp) for r, dp in settings]
+        tried = _each_setting(clip, base, target, settings)
         met = [c for c in tried if target.met(c.errors)]
         return min(met, key=lambda c: c.size) if met else tried[0]
-    sizes = [sum(bound_search(c, b, target, r, dp).size for c, b in parts) for r, dp in settings]
-    chosen = settings[int(np.argmin(sizes))]
-    best = bound_search(clip, base, target, *chosen)
-    if not target.met(best.errors) and chosen != settings[0]:
-        best = bound_search(clip, base, target, *settings[0])
+    per_part = [_each_setting(c, b, target, settings) for c, b in parts]
+    sizes = [sum(p[k].size for p in per_part) for k in range(len(settings))]
+    k = int(np.argmin(sizes))
+    start = math.exp(float(np.mean([math.log(p[k].bound) for p in per_part])))
+    best = bound_search(clip, base, target, *settings[k], start=start)
+    if not target.met(best.errors) and k != 0:
+        best = bound_search(clip, base, target, *settings[0], start=start)
     return best
+
+
+def _each_setting(clip: Clip, base: np.ndarray, target: Target,
+                  settings: list[tuple[float, int]]) -> list[Correction]:
+    """:func:`bound_search` with each ``(relax_by, depth)`` setting, the first one's bound starting the others'."""
+    first = bound_search(clip, base, target, *settings[0])
+    return [first] + [bound_search(clip, base, target, r, dp, start=first.bound) for r, dp in settings[1:]]
 
 
 def _windows(clip: Clip, base: np.ndarray) -> list[tuple[Clip, np.ndarray]]:
@@ -59,10 +71,11 @@ def _windows(clip: Clip, base: np.ndarray) -> list[tuple[Clip, np.ndarray]]:
     return out
 
 
-def bound_search(clip: Clip, base: np.ndarray, target: Target, relax_by: float, depth: int) -> Correction:
+def bound_search(clip: Clip, base: np.ndarray, target: Target, relax_by: float, depth: int,
+                 start: float | None = None) -> Correction:
     """The correction with the largest bound meeting ``target`` (the bound is at most ``max_error``; for a
     distortion or ARMS target, secant steps in log space inside the bracket of met and missed bounds, at most
-    :data:`SEARCH_FITS` fits)."""
+    :data:`SEARCH_FITS` fits, from ``start`` when given: a bound found with other settings)."""
     e_cap = target.max_error
     if target.max_distortion is None and target.max_arms is None:
         assert e_cap is not None
@@ -79,6 +92,10 @@ def bound_search(clip: Clip, base: np.ndarray, target: Target, relax_by: float, 
     base_errors = clip.metric.of_positions(clip.positions_of(base))
     if target.met(base_errors) and base_errors.max_error > 0:  # the model alone meets it: hold feet, bound the rest
         guesses = [base_errors.max_error * 1.001]
+        # far looser bounds leave the model's points as they are and only hold the feet: not worth a long search
+        e_cap = min(e_cap if e_cap is not None else math.inf, LOOSEST * guesses[0])
+    if start is not None and start > 0:
+        guesses = [start]
     e = min(guesses + ([e_cap] if e_cap is not None else []))
     best: Correction | None = None  # the largest bound met so far
     low_fail = math.inf  # the smallest bound missed so far

@@ -85,7 +85,7 @@ def given_settings(options: dict[str, Any], declared: tuple[Option, ...]) -> boo
 
 def corrected(encode: Encoder, decode: Decoder, codec: str, declared: tuple[Option, ...],
               base_options: Callable[[AnyMotion, dict[str, Any], Target], dict[str, Any]] | None = None,
-              zero_base: bool = True) -> tuple[Encoder, Decoder]:
+              zero_base: bool = True, model_base: bool = True) -> tuple[Encoder, Decoder]:
     """The codec's encoder and decoder with the correction layer (see the module docstring).
 
     Args:
@@ -95,6 +95,8 @@ def corrected(encode: Encoder, decode: Decoder, codec: str, declared: tuple[Opti
         base_options: ``(motion, options, target) -> options`` the model is encoded with (default: its own
             settings, no target: a search of the model's settings costs more time than the correction does).
         zero_base: whether the correction alone (no model) may be chosen when it is smaller.
+        model_base: whether the model is tried as the base when the user fixed none of its settings (False: a
+            model the correction alone always beats, e.g. a uniform quantiser, is used only with given settings).
     """
     def enc(motion: AnyMotion, **options: Any) -> Sections:
         if motion.n_frames == 0 or motion.values.size == 0:  # nothing to be wrong about
@@ -107,9 +109,10 @@ def corrected(encode: Encoder, decode: Decoder, codec: str, declared: tuple[Opti
         make = base_options or strip_targets
         tried: list[tuple[int, int, Sections, Correction]] = []
         try:
-            base_sections = encode(motion, **make(motion, options, target))
-            base = value_matrix(decode(base_sections, header))
-            tried.append((BASE_MODEL, _size(base_sections), base_sections, search(clip, base, target)))
+            if model_base or fixed or not zero_base:
+                base_sections = encode(motion, **make(motion, options, target))
+                base = value_matrix(decode(base_sections, header))
+                tried.append((BASE_MODEL, _size(base_sections), base_sections, search(clip, base, target)))
         except TargetError:
             if fixed or not zero_base:
                 base_sections = encode(motion, **strip_targets(motion, options, target))
