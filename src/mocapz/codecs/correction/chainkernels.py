@@ -20,6 +20,8 @@ import math
 import numpy as np
 from numba import njit
 
+from mocapz.codecs.pga.ikkernels import mul33
+
 jit = njit(cache=True, nogil=True, error_model="numpy")
 
 
@@ -51,13 +53,6 @@ def _euler(angles: np.ndarray, axes: np.ndarray, r: np.ndarray) -> None:
             ci, cj = r[a, i], r[a, j]
             r[a, i] = c * ci + s * cj
             r[a, j] = c * cj - s * ci
-
-
-@jit
-def _mul(a: np.ndarray, b: np.ndarray, out: np.ndarray) -> None:
-    for i in range(3):
-        for k in range(3):
-            out[i, k] = a[i, 0] * b[0, k] + a[i, 1] * b[1, k] + a[i, 2] * b[2, k]
 
 
 @jit
@@ -114,12 +109,12 @@ def goal_angles(g, p, j: int, parent: int, global_rot, positions, aim: int, cos_
                     kk[0, 0], kk[0, 1], kk[0, 2] = 0.0, -v2, v1
                     kk[1, 0], kk[1, 1], kk[1, 2] = v2, 0.0, -v0
                     kk[2, 0], kk[2, 1], kk[2, 2] = -v1, v0, 0.0
-                    _mul(kk, kk, tmp)
+                    mul33(kk, kk, tmp)
                     h = 1.0 / (1.0 + max(c, -0.5))
                     for a in range(3):
                         for b in range(3):
                             turn[a, b] = (1.0 if a == b else 0.0) + kk[a, b] + tmp[a, b] * h
-                    _mul(turn, goal, tmp)
+                    mul33(turn, goal, tmp)
                     goal[:, :] = tmp
         if parent >= 0:
             _mul_t(g[f, parent], goal, r)
@@ -127,7 +122,7 @@ def goal_angles(g, p, j: int, parent: int, global_rot, positions, aim: int, cos_
             r[:, :] = goal
         if turned:
             _mul_t(axis, r, tmp)
-            _mul(tmp, axis, r)
+            mul33(tmp, axis, r)
         x = sign * r[i, k]
         mid = math.asin(min(1.0, max(-1.0, x)))
         if abs(x) > 1.0 - 1e-12:
@@ -163,11 +158,11 @@ def compose(g, j: int, parent: int, values, scale: float, axes, axis, turned: bo
             ang[a] = values[f, a] * scale
         _euler(ang, axes, loc)
         if turned:
-            _mul(axis, loc, tmp)
+            mul33(axis, loc, tmp)
             for a in range(3):
                 for b in range(3):
                     loc[a, b] = tmp[a, 0] * axis[b, 0] + tmp[a, 1] * axis[b, 1] + tmp[a, 2] * axis[b, 2]
         if parent >= 0:
-            _mul(g[f, parent], loc, g[f, j])
+            mul33(g[f, parent], loc, g[f, j])
         else:
             g[f, j, :, :] = loc
