@@ -14,13 +14,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 from click.testing import CliRunner
-from conftest import data_path
+from conftest import DATA, data_path
 
 import mocapz
 from mocapz import MarkerMotion, Motion, TargetError
 from mocapz.cli.main import cli
 from mocapz.codecs import all_codecs
 from mocapz.codecs.correction import lifting
+from mocapz.errors import FormatError
 from mocapz.metrics.contacts import find_contacts
 from mocapz.metrics.figures import ErrorReport
 from mocapz.model.kinematics import forward_kinematics
@@ -223,3 +224,33 @@ def test_lifting_bound_and_round_trip() -> None:
     small = 0.5 * tol.min() * rng.uniform(-1, 1, size=(frames, cols))  # within every dead zone: all zeros
     q0, y0 = lifting.quantise(small, tol, 5)
     assert not q0.any() and not y0.any()
+
+
+# ---------------------------------------------------------------- every shared file, every lossy codec
+EVERY_FILE = sorted(str(p.relative_to(DATA)) for p in DATA.rglob("*")
+                    if p.is_file() and p.suffix.lower() in (".bvh", ".amc", ".c3d", ".trc"))
+EVERY_FRAMES = 120  # a slice of each file: the formats' variety is what this covers (whole files: the tests above)
+
+
+@pytest.mark.parametrize("rel", EVERY_FILE)
+def test_every_file_every_lossy_codec(rel: str) -> None:
+    """On a slice of every BVH, AMC, C3D and TRC file under ../shared/data, every lossy codec that takes its
+    kind meets max error 1 cm, d 0.36 % and (markers) ARMS 6.5 mm at once, checked on the decoded result; a
+    file that cannot be read is refused with a FormatError naming it."""
+    try:
+        m = mocapz.load(data_path(rel))
+    except FormatError as exc:
+        assert Path(rel).name in str(exc)
+        return
+    m = m.slice(0, EVERY_FRAMES)
+    if not m.n_frames:
+        return
+    target: dict[str, str | float] = {"max_distortion": 0.36}
+    if m.unit_cm:
+        target["max_error"] = "1cm"
+        if isinstance(m, MarkerMotion):
+            target["max_arms"] = "6.5mm"
+    kind = "skeleton" if isinstance(m, Motion) else "markers"
+    for info in all_codecs():
+        if info.lossy and kind in info.kinds:
+            _check(m, info.name, target)
