@@ -210,8 +210,9 @@ def track_bits(sections: dict[str, bytes]) -> np.ndarray:
 # file tried (CMU BVH, ASF/AMC, Bandai-Namco, C3D, TRC): the model is the base only with settings the user gives
 ENCODE, DECODE = corrected(encode, decode, "quant", OPTIONS, model_base=False)
 INFO = CodecInfo(name="quant", version=VERSION, kinds=("skeleton", "markers"), encode=ENCODE, decode=DECODE,
-                 options=OPTIONS, summary="baseline: per-track uniform quantisation under a position error "
-                                          "threshold, every frame kept (as ACL and game engines do)")
+                 options=OPTIONS, summary="baseline: per-track quantisation of every frame under a position "
+                                          "error bound (as ACL and game engines do): with a target, the correction "
+                                          "layer's closed-loop lifting alone; with a step, uniform steps corrected")
 
 
 
