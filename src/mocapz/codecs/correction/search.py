@@ -30,21 +30,62 @@ def search(clip: Clip, base: np.ndarray, target: Target, depth: int | None = Non
     the others' searches (a distortion or ARMS target's bound hardly depends on the setting), and the
     windows' bound the whole clip's. ``depth``: the lifting depth, when known (e.g. chosen on another base
     of the same clip)."""
-    depths = [depth] if depth is not None else [max(1, clip.levels + d) for d in DEPTHS]
-    settings = list(dict.fromkeys((r, dp) for dp in depths for r in RELAXES))
-    parts = _windows(clip, base)
+    return search_bases(clip, [base], [0], target, depth)[1]
+
+
+def search_bases(clip: Clip, bases: list[np.ndarray], extra: list[int], target: Target,
+                 depth: int | None = None) -> tuple[int, Correction]:
+    """The base (``(frames, columns)`` values the correction is added to, each costing ``extra`` bytes of its
+    own) and the correction coding the clip smallest, ``(index, correction)``; the first base's settings are
+    searched as :func:`search` does, the others' at the lifting depth it chose. On a short clip every base is
+    searched whole; on a long one the bases are compared on the two windows (their corrections' bytes scaled
+    to the clip, plus their own) and only the best is coded whole, verified, and searched on its own if it
+    misses (then the other bases are searched whole as well). The smallest is returned, met or not: the
+    caller says what missed."""
+    parts = _windows(clip)
     if parts[0][0] is clip:
-        tried = _each_setting(clip, base, target, settings)
-        met = [c for c in tried if target.met(c.errors)]
-        return min(met, key=lambda c: c.size) if met else tried[0]
-    per_part = [_each_setting(c, b, target, settings) for c, b in parts]
-    sizes = [sum(p[k].size for p in per_part) for k in range(len(settings))]
-    k = int(np.argmin(sizes))
-    start = math.exp(float(np.mean([math.log(p[k].bound) for p in per_part])))
-    best = bound_search(clip, base, target, *settings[k], start=start)
-    if not target.met(best.errors) and k != 0:
-        best = bound_search(clip, base, target, *settings[0], start=start)
-    return best
+        found: list[Correction] = []
+        for base in bases:
+            found.append(_search_whole(clip, base, target, depth if not found else found[0].depth))
+        return _smallest(found, extra)
+    share = clip.motion.n_frames / sum(c.motion.n_frames for c, _ in parts)
+    predicted: list[tuple[float, float, tuple[float, int]]] = []  # per base: bytes, start bound, setting
+    for i, base in enumerate(bases):
+        dp = depth if i == 0 else predicted[0][2][1]
+        settings = _settings(clip, dp)
+        per_part = [_each_setting(c, base[a], target, settings) for c, a in parts]
+        sizes = [sum(p[k].size for p in per_part) for k in range(len(settings))]
+        k = int(np.argmin(sizes))
+        start = math.exp(float(np.mean([math.log(p[k].bound) for p in per_part])))
+        predicted.append((extra[i] + share * sizes[k], start, settings[k]))
+    best = int(np.argmin([p[0] for p in predicted]))
+    _, start, setting = predicted[best]
+    cor = bound_search(clip, bases[best], target, *setting, start=start)
+    first = _settings(clip, depth if best == 0 else predicted[0][2][1])[0]
+    if not target.met(cor.errors) and setting != first:
+        cor = bound_search(clip, bases[best], target, *first, start=start)
+    if target.met(cor.errors) or len(bases) == 1:
+        return best, cor
+    found = [cor if i == best else _search_whole(clip, b, target, cor.depth) for i, b in enumerate(bases)]
+    return _smallest(found, extra)
+
+
+def _settings(clip: Clip, depth: int | None) -> list[tuple[float, int]]:
+    """The ``(relax_by, depth)`` settings tried: every depth of :data:`DEPTHS`, or the one given."""
+    depths = [depth] if depth is not None else [max(1, clip.levels + d) for d in DEPTHS]
+    return list(dict.fromkeys((r, dp) for dp in depths for r in RELAXES))
+
+
+def _search_whole(clip: Clip, base: np.ndarray, target: Target, depth: int | None) -> Correction:
+    """Every setting coded on the whole clip; the smallest met (else the first)."""
+    tried = _each_setting(clip, base, target, _settings(clip, depth))
+    met = [c for c in tried if target.met(c.errors)]
+    return min(met, key=lambda c: c.size) if met else tried[0]
+
+
+def _smallest(found: list[Correction], extra: list[int]) -> tuple[int, Correction]:
+    i = int(np.argmin([e + c.size for e, c in zip(extra, found, strict=True)]))
+    return i, found[i]
 
 
 def _each_setting(clip: Clip, base: np.ndarray, target: Target,
@@ -54,20 +95,21 @@ def _each_setting(clip: Clip, base: np.ndarray, target: Target,
     return [first] + [bound_search(clip, base, target, r, dp, start=first.bound) for r, dp in settings[1:]]
 
 
-def _windows(clip: Clip, base: np.ndarray) -> list[tuple[Clip, np.ndarray]]:
-    """The clip itself, or for a long clip (over three windows of :data:`SAMPLE_S`; not a block, whose
-    decisions are the whole clip's) two windows centred at a third and two thirds of it."""
+def _windows(clip: Clip) -> list[tuple[Clip, slice]]:
+    """``[(clip, every frame)]``, or for a long clip (over three windows of :data:`SAMPLE_S`; not a block, whose
+    decisions are the whole clip's) two windows centred at a third and two thirds of it, each as
+    ``(Clip, frames slice)``."""
     motion = clip.motion
     w = max(256, int(SAMPLE_S * motion.frame_rate))
     n = motion.n_frames
     if n <= 3 * w or clip.whole is not None:
-        return [(clip, base)]
+        return [(clip, slice(None))]
     out = []
     for centre in (n // 3, 2 * n // 3):
         a = max(0, centre - w // 2)
         sub = motion.slice(a, a + w)
         sub = replace(sub, metadata={k: v for k, v in sub.metadata.items() if k != "block_of"})
-        out.append((Clip(sub, clip.contacts is not None), base[a:a + w]))
+        out.append((Clip(sub, clip.contacts is not None), slice(a, a + w)))
     return out
 
 

@@ -24,8 +24,8 @@ from typing import Any
 import numpy as np
 
 from mocapz.codecs.correction import bounds, context, lifting
-from mocapz.codecs.correction.fit import Clip, Correction, value_matrix
-from mocapz.codecs.correction.search import search
+from mocapz.codecs.correction.fit import Clip, value_matrix
+from mocapz.codecs.correction.search import search_bases
 from mocapz.codecs.gaps import pack_mask, unpack_mask
 from mocapz.codecs.options import Length, Option
 from mocapz.codecs.target import TARGET_NAMES, Target
@@ -107,23 +107,21 @@ def corrected(encode: Encoder, decode: Decoder, codec: str, declared: tuple[Opti
         header = ClipHeader.of(motion)
         fixed = given_settings(options, declared)
         make = base_options or strip_targets
-        tried: list[tuple[int, int, Sections, Correction]] = []
+        tried: list[tuple[int, Sections, np.ndarray]] = []  # the bases: kind, their sections, their values
         try:
             if model_base or fixed or not zero_base:
                 base_sections = encode(motion, **make(motion, options, target))
-                base = value_matrix(decode(base_sections, header))
-                tried.append((BASE_MODEL, _size(base_sections), base_sections, search(clip, base, target)))
+                tried.append((BASE_MODEL, base_sections, value_matrix(decode(base_sections, header))))
         except TargetError:
             if fixed or not zero_base:
                 base_sections = encode(motion, **strip_targets(motion, options, target))
-                base = value_matrix(decode(base_sections, header))
-                tried.append((BASE_MODEL, _size(base_sections), base_sections, search(clip, base, target)))
+                tried.append((BASE_MODEL, base_sections, value_matrix(decode(base_sections, header))))
         if zero_base and not fixed:
             zero = {"c.gaps": pack_mask(motion.missing)} if isinstance(motion, MarkerMotion) \
                 and motion.missing.any() else {}
-            depth = tried[0][3].depth if tried else None  # the model's lifting depth (a search of its own costs)
-            tried.append((BASE_NONE, _size(zero), zero, search(clip, np.zeros_like(clip.values), target, depth)))
-        kind, _, base_sections, cor = min(tried, key=lambda t: t[1] + t[3].size)
+            tried.append((BASE_NONE, zero, np.zeros_like(clip.values)))
+        best, cor = search_bases(clip, [t[2] for t in tried], [_size(t[1]) for t in tried], target)
+        kind, base_sections, _ = tried[best]
         if not target.met(cor.errors):
             raise TargetError(f"{motion.metadata.get('path', motion.name)}: the {codec} codec with its correction "
                               f"misses the target ({target.describe()}): it reaches distortion "
