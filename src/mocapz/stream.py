@@ -29,6 +29,7 @@ from mocapz.codecs.correction.context import acceleration_energy
 from mocapz.codecs.target import ErrorMetric
 from mocapz.errors import FormatError, OptionError
 from mocapz.format import stream as framing
+from mocapz.format.blocks import thin
 from mocapz.format.layout import decode_header, encode_layout
 from mocapz.model.header import ClipHeader
 from mocapz.model.motion import AnyMotion, BlockOf, MarkerMotion, Motion
@@ -70,6 +71,7 @@ class StreamEncoder:
         self.crc = 0
         self.started = False
         self.closed = False
+        self.last: dict[str, bytes] | None = None  # the previous block's sections (:func:`.blocks.thin`)
 
     def write(self, frames: np.ndarray | AnyMotion) -> bytes:
         """Add frames ``(n, channels)`` (skeleton) or ``(n, markers, 3)`` (markers; NaN gaps) in file units;
@@ -130,7 +132,8 @@ class StreamEncoder:
         self.past = np.concatenate([past, rows])[-self.history:]
         self.past_pos, self.past_ok = pos[-self.history:], ok[-self.history:]
         self.frames += len(rows)
-        record = framing.block_bytes(len(rows), sections)
+        record = framing.block_bytes(len(rows), thin(self.last, sections))
+        self.last = sections
         self.crc = zlib.crc32(record, self.crc)
         return record
 

@@ -8,6 +8,11 @@ the section ``blk`` (the index) and every block's codec sections under the name 
 
 ``blk`` = uvarint ``block_frames``, uvarint block count. The container's section table locates every
 block's bytes, so a reader decodes only the blocks a frame range needs.
+
+A block's section equal to the previous block's section of the same name (a codec's per-column codes, its
+header) is written once: the later block holds an empty section ``"={name}"`` instead (:func:`thin`,
+:func:`thicken`; a streamed file's blocks do the same). Finding it back is a look-up in the section table,
+so a frame range still decodes only its own blocks.
 """
 
 from __future__ import annotations
@@ -19,6 +24,8 @@ from mocapz.format.entropy import read_uvarint, write_uvarint
 
 INDEX = "blk"
 SEPARATOR = ":"
+SAME = "="  # a block's empty section "=name" stands for the previous block's section "name"
+SAME_FROM = 2  # payloads of at least this many bytes are written once when equal (the mark costs about one)
 
 
 @dataclass(frozen=True)
@@ -54,11 +61,40 @@ def pack(index: BlockIndex, blocks: list[dict[str, bytes]]) -> dict[str, bytes]:
     if len(blocks) != index.count:
         raise ValueError(f"{len(blocks)} blocks for an index of {index.count}")
     out = {INDEX: write_uvarint(index.block_frames) + write_uvarint(index.count)}
+    previous = None
     for i, sections in enumerate(blocks):
-        for name, payload in sections.items():
+        for name, payload in thin(previous, sections).items():
             if SEPARATOR in name:
                 raise ValueError(f"section name {name!r} holds {SEPARATOR!r}, which blocks reserve")
             out[block_name(i, name)] = payload
+        previous = sections
+    return out
+
+
+def thin(previous: dict[str, bytes] | None, sections: dict[str, bytes]) -> dict[str, bytes]:
+    """A block's sections as written after a block of sections ``previous`` (None: the first block): those
+    equal to the previous block's of the same name become the empty mark ``"=name"``."""
+    out = {}
+    for name, payload in sections.items():
+        if name.startswith(SAME):
+            raise ValueError(f"section name {name!r} starts with {SAME!r}, which blocks reserve")
+        same = previous is not None and len(payload) >= SAME_FROM and previous.get(name) == payload
+        out[SAME + name if same else name] = b"" if same else payload
+    return out
+
+
+def thicken(previous: dict[str, bytes] | None, sections: dict[str, bytes]) -> dict[str, bytes]:
+    """Inverse of :func:`thin`: a block's sections with every mark replaced by the previous block's section
+    (``previous``: that block's sections, as returned by this function); FormatError if a mark names none."""
+    out = {}
+    for name, payload in sections.items():
+        if not name.startswith(SAME):
+            out[name] = payload
+            continue
+        real = name[len(SAME):]
+        if payload or previous is None or real not in previous or real in sections:
+            raise FormatError(None, f"corrupted block (section {name!r} repeats no section of the block before)")
+        out[real] = previous[real]
     return out
 
 
@@ -88,4 +124,6 @@ def unpack(sections: dict[str, bytes], frames: int) -> tuple[BlockIndex, list[di
         if not head.isdigit() or int(head) >= count or not name:
             raise FormatError(None, f"corrupted .mcz file (section {key!r} names no block of the index)")
         blocks[int(head)][name] = payload
+    for i in range(count):
+        blocks[i] = thicken(blocks[i - 1] if i else None, blocks[i])
     return index, blocks, shared

@@ -5,7 +5,8 @@ Byte layout::
 
     header   magic b"MCZ\\x1a", byte 3, codec name length n, n bytes codec name, codec version,
              uvarint L + L bytes layout header (its frame count 0: the stream's length is not known yet)
-    block    byte 1, uvarint frames (>= 1), the block's codec sections (``write_sections``),
+    block    byte 1, uvarint frames (>= 1), the block's codec sections (``write_sections``; one equal to the
+             previous block's is the empty mark ``"=name"``, :func:`mocapz.format.blocks.thin`),
              CRC-32 (little endian) of the record from its first byte
     ...
     end      byte 0, uvarint total frames (the blocks' sum), clip-wide sections, CRC-32 of every byte of the
@@ -22,6 +23,7 @@ import zlib
 from dataclasses import dataclass, field
 
 from mocapz.errors import FormatError
+from mocapz.format.blocks import thicken
 from mocapz.format.container import MAGIC, read_sections, write_sections
 from mocapz.format.entropy import read_uvarint, write_uvarint
 
@@ -81,6 +83,7 @@ class StreamReader:
         self.pos = 0  # bytes of ``buffer`` already parsed
         self.stream: Stream | None = None
         self.crc = 0
+        self.last: dict[str, bytes] | None = None  # the previous block's sections (:func:`.blocks.thicken`)
 
     @property
     def pending(self) -> int:
@@ -144,6 +147,11 @@ class StreamReader:
             self.stream.sections = sections
             self.stream.complete = True
             return pos + 4, None
+        try:
+            sections = thicken(self.last, sections)
+        except FormatError as exc:
+            raise FormatError(None, f"corrupted stream {exc.problem}") from None
+        self.last = sections
         self.stream.block_frames.append(frames)
         if self.keep:
             self.stream.blocks.append(sections)
