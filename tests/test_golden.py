@@ -35,12 +35,14 @@ def test_encoder_writes_the_golden_bytes(entry: dict) -> None:
     assert hashlib.sha256(data).hexdigest() == entry["sha256"], f"{entry['file']}: the encoder's bytes moved"
 
 
-FORMAT1 = json.loads((HERE / "format1" / "golden.json").read_text())
+OLDER = [(d, e) for d in ("format1", "format2") for e in json.loads((HERE / d / "golden.json").read_text())]
 
 
-@pytest.mark.parametrize("entry", FORMAT1, ids=[e["file"] for e in FORMAT1])
-def test_first_correction_format_still_decodes(entry: dict) -> None:
-    """Files written before the correction's shrink factor (``c.head`` format 1) decode to the same values."""
-    data = (HERE / "format1" / entry["file"]).read_bytes()
+@pytest.mark.parametrize(("folder", "entry"), OLDER, ids=[f"{d}/{e['file']}" for d, e in OLDER])
+def test_earlier_formats_still_decode(folder: str, entry: dict) -> None:
+    """Files written before a format change decode to the same values: ``format1``, before the correction's
+    shrink factor (``c.head`` format 1); ``format2``, before the entropy coder's quarter-octave scales coded as
+    differences (coder 4: the lossy codecs' integer streams were coder 1 or 3)."""
+    data = (HERE / folder / entry["file"]).read_bytes()
     assert hashlib.sha256(data).hexdigest() == entry["sha256"]
     assert values_hash(mocapz.decompress(data)) == entry["values_sha256"]

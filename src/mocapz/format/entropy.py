@@ -1,7 +1,8 @@
 """Entropy coding of integer arrays.
 
 The main coder is constriction's range coder with a quantized Laplace model whose scale adapts per block
-of rows and per column (the scales travel in the stream as one byte each). Values beyond the model's range
+of rows and per column (the scales travel in the stream in quarter octaves, as differences coded by the range
+coder itself: a few bits each, so that a short block of a clip pays little for them). Values beyond the model's range
 are escaped and stored exactly. Where constriction is not installed (no wheel for aarch64 Linux), the same
 streams are written with zstd on zig-zag byte planes; the first byte of every stream says which coder
 wrote it, so either side can read both kinds when its coder is present.
@@ -25,12 +26,20 @@ except ImportError:  # pragma: no cover
 CODER_RANGE = 1  # constriction range coder, quantized Laplace, block scales
 CODER_ZSTD = 2  # zstd on zig-zag byte planes
 CODER_RANGE_PACKED = 3  # as CODER_RANGE, its scale bytes zstd-packed (uvarint length first) when that is smaller
+CODER_RANGE_DELTA = 4  # as CODER_RANGE, quarter-octave scales coded first, as differences, in the range stream
 
 LIMIT = (1 << 15) - 1  # |symbol| < LIMIT coded directly; LIMIT marks an escape
 BLOCK = 256  # rows per scale block
 SPARSE = 0.25  # a matrix with at most this share of non-zeros is also tried as zstd byte planes
 MAX_COUNT = 1 << 31  # most values in one integer stream
+DELTA_LIMIT = 128  # |difference| of two quarter-octave scale codes
 SCALE_STEPS = 8  # scale quantisation: s = 2 ** ((q - 64) / 8)
+QUARTER_BIAS = 32  # CODER_RANGE_DELTA's scales: s = 2 ** ((q - 32) / 4), q in 0 .. QUARTER_TOP
+QUARTER_TOP = 127
+DELTA_SCALES = (0.5, 1.0, 2.0, 4.0, 8.0, 16.0)  # Laplace scales of the scale codes' differences (one byte picks)
+
+
+_DELTA_MODEL = constriction.stream.model.QuantizedLaplace(-DELTA_LIMIT, DELTA_LIMIT) if HAVE_CONSTRICTION else None
 
 
 # ---------------------------------------------------------------- varints
@@ -162,6 +171,26 @@ def _block_scales(values: np.ndarray) -> np.ndarray:
     return q
 
 
+def _quarter_scales(values: np.ndarray) -> np.ndarray:
+    """Scale codes ``(blocks, columns)`` in quarter octaves (``s = 2 ** ((q - 32) / 4)``): per block and column,
+    the code near the mean absolute value's under which the block's values cost the fewest bits."""
+    rows, cols = values.shape
+    nb = max(1, -(-rows // BLOCK))
+    q = np.zeros((nb, cols), dtype=np.int64)
+    for b in range(nb):
+        blk = np.abs(values[b * BLOCK : (b + 1) * BLOCK]).astype(np.float64)
+        m = np.maximum(blk.mean(axis=0), 2.0**-6)
+        guess = np.round(np.log2(m) * 4) + QUARTER_BIAS
+        best, best_cost = guess, np.full(cols, np.inf)
+        for d in range(-4, 13):
+            code = np.clip(guess + d, 0, QUARTER_TOP)
+            cost = _laplace_bits(blk, 2.0 ** ((code - QUARTER_BIAS) / 4.0))
+            better = cost < best_cost
+            best, best_cost = np.where(better, code, best), np.where(better, cost, best_cost)
+        q[b] = best
+    return q
+
+
 def _laplace_bits(a: np.ndarray, scale: np.ndarray) -> np.ndarray:
     """Bits ``(columns,)`` the absolute values ``a`` ``(rows, columns)`` cost under a quantised Laplace model of
     scale ``scale`` ``(columns,)`` (each probability at least 2**-24, as the coder's)."""
@@ -197,13 +226,15 @@ def encode_int_matrix(values: np.ndarray, coder: int | None = None) -> bytes:
         if not HAVE_CONSTRICTION:
             coder = CODER_ZSTD
         else:
-            ranged = encode_int_matrix(v, CODER_RANGE)
+            ranged = encode_int_matrix(v, CODER_RANGE_DELTA)
             if v.size == 0 or np.count_nonzero(v) > SPARSE * v.size:
                 return ranged
             packed = encode_int_matrix(v, CODER_ZSTD)
             return packed if len(packed) < len(ranged) else ranged
     if coder == CODER_ZSTD or v.size == 0:
         return bytes([CODER_ZSTD]) + head + pack_uint64(zigzag(v.T))
+    if coder == CODER_RANGE_DELTA:
+        return _encode_delta(v, head)
     q = _block_scales(v)
     sym = np.clip(v, -LIMIT, LIMIT)
     esc_mask = np.abs(v) >= LIMIT
@@ -217,6 +248,32 @@ def encode_int_matrix(values: np.ndarray, coder: int | None = None) -> bytes:
     kind, scales = (CODER_RANGE_PACKED, write_uvarint(len(scales)) + scales) if len(scales) + 2 < q.size \
         else (CODER_RANGE, q.tobytes())
     return bytes([kind]) + head + scales + write_uvarint(len(esc)) + esc + write_uvarint(len(body)) + body
+
+
+def _encode_delta(v: np.ndarray, head: bytes) -> bytes:
+    """The CODER_RANGE_DELTA stream of ``v`` ``(rows, columns)``: the scale codes' differences (in block, then
+    column order, from QUARTER_BIAS) and the values, in one range-coded body."""
+    rows, _ = v.shape
+    q = _quarter_scales(v)
+    diffs = np.diff(q.ravel(), prepend=QUARTER_BIAS)
+    pick = int(np.argmin([_laplace_bits(np.abs(diffs)[:, None].astype(np.float64), np.array([d]))[0]
+                          for d in DELTA_SCALES]))
+    sym = np.clip(v, -LIMIT, LIMIT)
+    escapes = v[np.abs(v) >= LIMIT]
+    enc = constriction.stream.queue.RangeEncoder()
+    enc.encode(diffs.astype(np.int32), _DELTA_MODEL, np.zeros(diffs.size), np.full(diffs.size, DELTA_SCALES[pick]))
+    enc.encode(sym.ravel().astype(np.int32), constriction.stream.model.QuantizedLaplace(-LIMIT, LIMIT),
+               np.zeros(v.size), _quarter_values(q, rows))
+    body = enc.get_compressed().tobytes()
+    esc = pack_uint64(zigzag(escapes)) if escapes.size else b""
+    return bytes([CODER_RANGE_DELTA]) + head + bytes([pick]) + write_uvarint(len(esc)) + esc \
+        + write_uvarint(len(body)) + body
+
+
+def _quarter_values(q: np.ndarray, rows: int) -> np.ndarray:
+    """Per-symbol scale array ``(rows * cols,)`` from quarter-octave block codes."""
+    s = 2.0 ** ((q.astype(np.float64) - QUARTER_BIAS) / 4.0)
+    return np.ascontiguousarray(np.repeat(s, BLOCK, axis=0)[:rows], dtype=np.float64).ravel()
 
 
 def decode_int_matrix(data: bytes, shape: tuple[int, int] | None = None) -> np.ndarray:
@@ -238,13 +295,15 @@ def decode_int_matrix(data: bytes, shape: tuple[int, int] | None = None) -> np.n
     if coder == CODER_ZSTD:
         flat = unzigzag(unpack_uint64(bytes(buf[pos:]), rows * cols))
         return flat.reshape(cols, rows).T.copy()
-    if coder not in (CODER_RANGE, CODER_RANGE_PACKED):
+    if coder not in (CODER_RANGE, CODER_RANGE_PACKED, CODER_RANGE_DELTA):
         raise FormatError(None, f"unknown entropy coder id {coder}")
     if not HAVE_CONSTRICTION:
         raise FormatError(None, "this stream was written by the range coder; install 'constriction'")
     if rows * cols == 0:
         return np.zeros((rows, cols), dtype=np.int64)
     nb = max(1, -(-rows // BLOCK))
+    if coder == CODER_RANGE_DELTA:
+        return _decode_delta(buf, pos, rows, cols, nb)
     if coder == CODER_RANGE_PACKED:
         size, pos = read_uvarint(buf, pos)
         end = pos + size
@@ -272,10 +331,41 @@ def decode_int_matrix(data: bytes, shape: tuple[int, int] | None = None) -> np.n
         sym = dec.decode(model, np.zeros(rows * cols), _scale_values(q, rows)).astype(np.int64)
     except Exception as exc:  # constriction raises plain exceptions on corrupt input
         raise FormatError(None, f"corrupted entropy-coded data ({exc})") from None
-    sym = sym.reshape(rows, cols)
+    return _unescape(sym.reshape(rows, cols), esc_bytes)
+
+
+def _unescape(sym: np.ndarray, esc_bytes: bytes) -> np.ndarray:
+    """``sym`` with its escape marks replaced by the values stored aside."""
     esc_pos = np.abs(sym) >= LIMIT
     if esc_pos.any():
         if not esc_bytes:
             raise FormatError(None, "corrupted integer stream (escapes missing)")
         sym[esc_pos] = unzigzag(unpack_uint64(esc_bytes, int(esc_pos.sum())))
     return sym
+
+
+def _decode_delta(buf: memoryview, pos: int, rows: int, cols: int, nb: int) -> np.ndarray:
+    """The values of a CODER_RANGE_DELTA stream whose shape has been read (``pos``: just after it)."""
+    if pos >= len(buf) or buf[pos] >= len(DELTA_SCALES):
+        raise FormatError(None, "corrupted integer stream (scale model)")
+    pick = buf[pos]
+    n_esc, pos = read_uvarint(buf, pos + 1)
+    esc_bytes = bytes(buf[pos : pos + n_esc])
+    pos += n_esc
+    n_body, pos = read_uvarint(buf, pos)
+    body = bytes(buf[pos : pos + n_body])
+    if len(body) != n_body or len(esc_bytes) != n_esc or len(body) % 4:
+        raise FormatError(None, "truncated integer stream (body)")
+    try:
+        dec = constriction.stream.queue.RangeDecoder(np.frombuffer(body, dtype=np.uint32).copy())
+        diffs = dec.decode(_DELTA_MODEL, np.zeros(nb * cols), np.full(nb * cols, DELTA_SCALES[pick]))
+        q = np.cumsum(diffs.astype(np.int64)) + QUARTER_BIAS
+        if q.min() < 0 or q.max() > QUARTER_TOP:
+            raise FormatError(None, "corrupted integer stream (scales)")
+        sym = dec.decode(constriction.stream.model.QuantizedLaplace(-LIMIT, LIMIT), np.zeros(rows * cols),
+                         _quarter_values(q.reshape(nb, cols), rows)).astype(np.int64)
+    except FormatError:
+        raise
+    except Exception as exc:  # constriction raises plain exceptions on corrupt input
+        raise FormatError(None, f"corrupted entropy-coded data ({exc})") from None
+    return _unescape(sym.reshape(rows, cols), esc_bytes)
