@@ -221,6 +221,20 @@ def test_lifting_bound_and_round_trip() -> None:
     assert np.all(np.abs(x - y) <= tol * (1 + 1e-12))
     back = lifting.decode(lifting.read(lifting.pack(q, frames, 5), frames, cols, 5), tol, 5)
     np.testing.assert_array_equal(back, y)
+    # every layout of the streams reads back (knots whole or their absolute first row apart, details in one
+    # stream or per level); the first row apart is chosen when the knots start far from zero, as a block's do
+    for layout in range(4):
+        groups = lifting._groups(frames, 5, layout)
+        data, pos = bytearray([layout]), 0
+        for rows in groups:
+            part = lifting.encode_int_matrix(q[pos:pos + rows])
+            data += lifting.write_uvarint(len(part)) + part
+            pos += rows
+        np.testing.assert_array_equal(lifting.read(bytes(data), frames, cols, 5), q)
+    far = lifting.quantise(x + 1e4, tol, 5)[0]
+    assert lifting.pack(far, frames, 5)[0] & lifting.FIRST_APART
+    with pytest.raises(FormatError, match="layout"):  # a first row apart from a single knot row
+        lifting.read(bytes([lifting.FIRST_APART]) + bytes(8), 1, cols, 1)
     small = 0.5 * tol.min() * rng.uniform(-1, 1, size=(frames, cols))  # within every dead zone: all zeros
     q0, y0 = lifting.quantise(small, tol, 5)
     assert not q0.any() and not y0.any()

@@ -103,31 +103,43 @@ def row_groups(frames: int, levels: int) -> list[int]:
 
 
 SPLIT_TWO, SPLIT_LEVELS = 0, 1  # c.res layouts: knots + all details, or knots + each level's details
+FIRST_APART = 2  # layout flag: the knots' first row (absolute values, the rest are time differences) is a stream
+# of its own (its magnitudes would widen the scales of every knot of its columns: a block of a clip pays it each)
 
 
 def _groups(frames: int, levels: int, split: int) -> list[int]:
     rows = row_groups(frames, levels)
-    return rows if split == SPLIT_LEVELS else [rows[0], sum(rows[1:])]
+    rows = rows if split & SPLIT_LEVELS else [rows[0], sum(rows[1:])]
+    return [1, rows[0] - 1, *rows[1:]] if split & FIRST_APART and rows[0] > 1 else rows
 
 
 def pack(q: np.ndarray, frames: int, levels: int) -> bytes:
     """The bytes of the integers of :func:`quantise` for a clip of ``frames`` frames: a layout byte, then range
     coded streams each after its uvarint byte length: the coarse knots (time differences, the first row
-    absolute), then the details, all levels in one stream or one stream per level, whichever is smaller (the
-    levels' magnitudes differ by orders and one stream's adaptive scales mix them; each stream costs a scale
-    byte per column, which a short clip or block may not win back)."""
+    absolute; the first row a stream of its own where that is smaller), then the details, all levels in one
+    stream or one stream per level, whichever is smaller (the levels' magnitudes differ by orders and one
+    stream's adaptive scales mix them; each stream costs scales per column, which a short clip or block may not
+    win back)."""
     if not q.shape[1]:
         return b""
-    best = b""
-    for split in (SPLIT_TWO, SPLIT_LEVELS):
+    coded: dict[tuple[int, int], bytes] = {}  # each stream once: (first row, rows) -> its bytes
+
+    def part(pos: int, rows: int) -> bytes:
+        if (pos, rows) not in coded:
+            coded[pos, rows] = encode_int_matrix(q[pos:pos + rows])
+        return coded[pos, rows]
+
+    def layout(split: int) -> bytes:
         out, pos = bytearray([split]), 0
         for rows in _groups(frames, levels, split):
-            part = encode_int_matrix(q[pos:pos + rows])
-            out += write_uvarint(len(part)) + part
+            b = part(pos, rows)
+            out += write_uvarint(len(b)) + b
             pos += rows
-        if not best or len(out) < len(best):
-            best = bytes(out)
-    return best
+        return bytes(out)
+
+    knots = row_groups(frames, levels)[0]
+    first = FIRST_APART if knots > 1 and len(part(0, 1)) + len(part(1, knots - 1)) < len(part(0, knots)) else 0
+    return min((layout(first | split) for split in (SPLIT_TWO, SPLIT_LEVELS)), key=len)
 
 
 def read(data: bytes, frames: int, cols: int, levels: int) -> np.ndarray:
@@ -135,7 +147,8 @@ def read(data: bytes, frames: int, cols: int, levels: int) -> np.ndarray:
     before anything is allocated)."""
     if cols == 0:
         return np.zeros((0, 0), dtype=np.int64)
-    if not data or data[0] not in (SPLIT_TWO, SPLIT_LEVELS):
+    if not data or data[0] > SPLIT_LEVELS | FIRST_APART \
+            or (data[0] & FIRST_APART and row_groups(frames, levels)[0] < 2):
         raise FormatError(None, "corrupted correction stream (layout)")
     parts, pos = [], 1
     for rows in _groups(frames, levels, data[0]):
