@@ -318,13 +318,7 @@ def decode_int_matrix(data: bytes, shape: tuple[int, int] | None = None) -> np.n
         if end > len(buf):
             raise FormatError(None, "truncated integer stream (scales)")
         q = np.frombuffer(bytes(buf[pos:end]), dtype=np.uint8).reshape(nb, cols)
-    n_esc, pos = read_uvarint(buf, end)
-    esc_bytes = bytes(buf[pos : pos + n_esc])
-    pos += n_esc
-    n_body, pos = read_uvarint(buf, pos)
-    body = bytes(buf[pos : pos + n_body])
-    if len(body) != n_body or len(esc_bytes) != n_esc or len(body) % 4:
-        raise FormatError(None, "truncated integer stream (body)")
+    esc_bytes, body = _escapes_and_body(buf, end)
     model = constriction.stream.model.QuantizedLaplace(-LIMIT, LIMIT)
     try:
         dec = constriction.stream.queue.RangeDecoder(np.frombuffer(body, dtype=np.uint32).copy())
@@ -332,6 +326,18 @@ def decode_int_matrix(data: bytes, shape: tuple[int, int] | None = None) -> np.n
     except Exception as exc:  # constriction raises plain exceptions on corrupt input
         raise FormatError(None, f"corrupted entropy-coded data ({exc})") from None
     return _unescape(sym.reshape(rows, cols), esc_bytes)
+
+
+def _escapes_and_body(buf: memoryview, pos: int) -> tuple[bytes, bytes]:
+    """A range stream's escape bytes and body (uvarint length before each), from ``pos``."""
+    n_esc, pos = read_uvarint(buf, pos)
+    esc_bytes = bytes(buf[pos : pos + n_esc])
+    pos += n_esc
+    n_body, pos = read_uvarint(buf, pos)
+    body = bytes(buf[pos : pos + n_body])
+    if len(body) != n_body or len(esc_bytes) != n_esc or len(body) % 4:
+        raise FormatError(None, "truncated integer stream (body)")
+    return esc_bytes, body
 
 
 def _unescape(sym: np.ndarray, esc_bytes: bytes) -> np.ndarray:
@@ -349,13 +355,7 @@ def _decode_delta(buf: memoryview, pos: int, rows: int, cols: int, nb: int) -> n
     if pos >= len(buf) or buf[pos] >= len(DELTA_SCALES):
         raise FormatError(None, "corrupted integer stream (scale model)")
     pick = buf[pos]
-    n_esc, pos = read_uvarint(buf, pos + 1)
-    esc_bytes = bytes(buf[pos : pos + n_esc])
-    pos += n_esc
-    n_body, pos = read_uvarint(buf, pos)
-    body = bytes(buf[pos : pos + n_body])
-    if len(body) != n_body or len(esc_bytes) != n_esc or len(body) % 4:
-        raise FormatError(None, "truncated integer stream (body)")
+    esc_bytes, body = _escapes_and_body(buf, pos + 1)
     try:
         dec = constriction.stream.queue.RangeDecoder(np.frombuffer(body, dtype=np.uint32).copy())
         diffs = dec.decode(_DELTA_MODEL, np.zeros(nb * cols), np.full(nb * cols, DELTA_SCALES[pick]))
