@@ -93,10 +93,9 @@ class Clip:
         self.chain = None
         if isinstance(motion, Motion) and motion.n_frames:
             self.chain = Chain(motion, self.positions, forward_kinematics(motion.skeleton, motion.channels)[1])
-        levers = self.chain.levers(motion.channels) if self.chain is not None else None
-        self.layout = bounds.layout(motion, self.positions, levers)
-        self.levels = lifting_levels(motion.frame_rate)
         self.whole = context.block_of(motion)  # the clip this is a block of: decide as on the whole clip
+        self.layout = self._layout()
+        self.levels = lifting_levels(motion.frame_rate)
         if not hold_feet:
             self.contacts = None
         elif self.whole is not None:
@@ -107,6 +106,17 @@ class Clip:
                 self.contacts = find_contacts(motion, self.positions, self.valid, motion.unit_cm)
         self.body = body_height(self.positions, self.valid) if self.whole is None \
             else context.cached(self.whole, "body", body_height)
+
+    def _layout(self) -> bounds.Layout:
+        """The clip's layout; a block's is the whole clip's (its levers and moving columns: safe for every
+        block, and the step codes come out the same in every block, written once by the block marks)."""
+        chain, whole = self.chain, self.whole
+        if whole is None:
+            return bounds.layout(self.motion, self.positions,
+                                 chain.levers(self.motion.channels) if chain is not None else None)
+        clip = whole.clip
+        return context.cached(whole, "layout", lambda pos, _: bounds.layout(
+            clip, pos, chain.levers(clip.channels) if chain is not None else None))
 
     def smooth_up_to(self) -> float:
         """The largest bound at which the added jitter is held under :data:`JITTER` (file units): 2 cm, or
