@@ -148,43 +148,36 @@ def unpack_uint64(buf: bytes, count: int | None = None, *, at_most: int = MAX_CO
 
 # ---------------------------------------------------------------- block scales
 def _block_scales(values: np.ndarray) -> np.ndarray:
-    """Quantised Laplace scale code ``(blocks, columns)`` uint8: per block and column, the code (near the one
-    of the mean absolute value) under which the block's values cost the fewest bits. Sparse columns (mostly
-    zeros, a few larger values) cost less with a wider scale than their mean suggests."""
-    rows, cols = values.shape
-    nb = max(1, -(-rows // BLOCK))
-    q = np.zeros((nb, cols), dtype=np.uint8)
-    for b in range(nb):
-        blk = np.abs(values[b * BLOCK : (b + 1) * BLOCK]).astype(np.float64)
-        m = np.maximum(blk.mean(axis=0) if blk.size else np.zeros(cols), 2.0**-6)
-        guess = np.round(np.log2(m) * SCALE_STEPS) + 64
-        if not blk.size:
-            q[b] = np.clip(guess, 0, 255).astype(np.uint8)
-            continue
-        best, best_cost = guess, np.full(cols, np.inf)
-        for d in range(-SCALE_STEPS, 3 * SCALE_STEPS + 1, 2):
-            code = np.clip(guess + d, 0, 255)
-            cost = _laplace_bits(blk, 2.0 ** ((code - 64.0) / SCALE_STEPS))
-            better = cost < best_cost
-            best, best_cost = np.where(better, code, best), np.where(better, cost, best_cost)
-        q[b] = best.astype(np.uint8)
-    return q
+    """Coder 1's scale codes ``(blocks, columns)`` uint8, ``s = 2 ** ((q - 64) / 8)``: the guess and every
+    second code from 8 below to 24 above it (:func:`_scale_codes`)."""
+    return _scale_codes(values, SCALE_STEPS, 64, range(-SCALE_STEPS, 3 * SCALE_STEPS + 1, 2), 255).astype(np.uint8)
 
 
 def _quarter_scales(values: np.ndarray) -> np.ndarray:
-    """Scale codes ``(blocks, columns)`` in quarter octaves (``s = 2 ** ((q - 32) / 4)``): per block and column,
-    the code near the mean absolute value's under which the block's values cost the fewest bits."""
+    """Coder 4's scale codes ``(blocks, columns)`` in quarter octaves, ``s = 2 ** ((q - 32) / 4)``: every code
+    from 4 below to 12 above the guess (:func:`_scale_codes`)."""
+    return _scale_codes(values, 4, QUARTER_BIAS, range(-4, 13), QUARTER_TOP)
+
+
+def _scale_codes(values: np.ndarray, steps: int, bias: int, offsets: range, top: int) -> np.ndarray:
+    """Quantised Laplace scale codes ``(blocks, columns)`` int64 (``s = 2 ** ((q - bias) / steps)``, ``0 <= q <=
+    top``): per block of :data:`BLOCK` rows and column, of the codes ``offsets`` away from the one of the mean
+    absolute value, the one under which the block's values cost the fewest bits. Sparse columns (mostly zeros,
+    a few larger values) cost less with a wider scale than their mean suggests."""
     rows, cols = values.shape
     nb = max(1, -(-rows // BLOCK))
     q = np.zeros((nb, cols), dtype=np.int64)
     for b in range(nb):
         blk = np.abs(values[b * BLOCK : (b + 1) * BLOCK]).astype(np.float64)
-        m = np.maximum(blk.mean(axis=0), 2.0**-6)
-        guess = np.round(np.log2(m) * 4) + QUARTER_BIAS
+        m = np.maximum(blk.mean(axis=0) if blk.size else np.zeros(cols), 2.0**-6)
+        guess = np.round(np.log2(m) * steps) + bias
+        if not blk.size:
+            q[b] = np.clip(guess, 0, top)
+            continue
         best, best_cost = guess, np.full(cols, np.inf)
-        for d in range(-4, 13):
-            code = np.clip(guess + d, 0, QUARTER_TOP)
-            cost = _laplace_bits(blk, 2.0 ** ((code - QUARTER_BIAS) / 4.0))
+        for d in offsets:
+            code = np.clip(guess + d, 0, top)
+            cost = _laplace_bits(blk, 2.0 ** ((code - float(bias)) / steps))
             better = cost < best_cost
             best, best_cost = np.where(better, code, best), np.where(better, cost, best_cost)
         q[b] = best
@@ -201,9 +194,9 @@ def _laplace_bits(a: np.ndarray, scale: np.ndarray) -> np.ndarray:
     return -np.log2(np.maximum(p, 2.0**-24)).sum(axis=0)
 
 
-def _scale_values(q: np.ndarray, rows: int) -> np.ndarray:
-    """Per-symbol scale array ``(rows * cols,)`` from block codes."""
-    s = 2.0 ** ((q.astype(np.float64) - 64.0) / SCALE_STEPS)
+def _scale_values(q: np.ndarray, rows: int, steps: int = SCALE_STEPS, bias: int = 64) -> np.ndarray:
+    """Per-symbol scale array ``(rows * cols,)`` from block codes ``q`` (``s = 2 ** ((q - bias) / steps)``)."""
+    s = 2.0 ** ((q.astype(np.float64) - bias) / steps)
     full = np.repeat(s, BLOCK, axis=0)[:rows]
     return np.ascontiguousarray(full, dtype=np.float64).ravel()
 
@@ -263,17 +256,11 @@ def _encode_delta(v: np.ndarray, head: bytes) -> bytes:
     enc = constriction.stream.queue.RangeEncoder()
     enc.encode(diffs.astype(np.int32), _DELTA_MODEL, np.zeros(diffs.size), np.full(diffs.size, DELTA_SCALES[pick]))
     enc.encode(sym.ravel().astype(np.int32), constriction.stream.model.QuantizedLaplace(-LIMIT, LIMIT),
-               np.zeros(v.size), _quarter_values(q, rows))
+               np.zeros(v.size), _scale_values(q, rows, 4, QUARTER_BIAS))
     body = enc.get_compressed().tobytes()
     esc = pack_uint64(zigzag(escapes)) if escapes.size else b""
     return bytes([CODER_RANGE_DELTA]) + head + bytes([pick]) + write_uvarint(len(esc)) + esc \
         + write_uvarint(len(body)) + body
-
-
-def _quarter_values(q: np.ndarray, rows: int) -> np.ndarray:
-    """Per-symbol scale array ``(rows * cols,)`` from quarter-octave block codes."""
-    s = 2.0 ** ((q.astype(np.float64) - QUARTER_BIAS) / 4.0)
-    return np.ascontiguousarray(np.repeat(s, BLOCK, axis=0)[:rows], dtype=np.float64).ravel()
 
 
 def decode_int_matrix(data: bytes, shape: tuple[int, int] | None = None) -> np.ndarray:
@@ -363,7 +350,7 @@ def _decode_delta(buf: memoryview, pos: int, rows: int, cols: int, nb: int) -> n
         if q.min() < 0 or q.max() > QUARTER_TOP:
             raise FormatError(None, "corrupted integer stream (scales)")
         sym = dec.decode(constriction.stream.model.QuantizedLaplace(-LIMIT, LIMIT), np.zeros(rows * cols),
-                         _quarter_values(q.reshape(nb, cols), rows)).astype(np.int64)
+                         _scale_values(q.reshape(nb, cols), rows, 4, QUARTER_BIAS)).astype(np.int64)
     except FormatError:
         raise
     except Exception as exc:  # constriction raises plain exceptions on corrupt input

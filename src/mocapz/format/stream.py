@@ -147,11 +147,7 @@ class StreamReader:
             self.stream.sections = sections
             self.stream.complete = True
             return pos + 4, None
-        try:
-            sections = thicken(self.last, sections)
-        except FormatError as exc:
-            raise FormatError(None, f"corrupted stream {exc.problem}") from None
-        self.last = sections
+        sections = self.last = thicken(self.last, sections)
         self.stream.block_frames.append(frames)
         if self.keep:
             self.stream.blocks.append(sections)
