@@ -9,7 +9,7 @@ import pytest
 from conftest import data_path
 
 import mocapz
-from mocapz.codecs.correction import bounds, chain
+from mocapz.codecs.correction import bounds, chain, compiled, lifting
 from mocapz.codecs.correction.fit import Clip
 from mocapz.codecs.pga import ikjit
 
@@ -21,8 +21,8 @@ CLIPS = [("cmu/bvh/06_10.bvh", 700), ("cmu/asfamc/backflip.amc", None), ("other/
 
 @pytest.fixture
 def kernels_always(monkeypatch: pytest.MonkeyPatch) -> None:
-    """The kernels whatever the clip's length (numpy below :data:`chain.LAZY_FRAMES` otherwise)."""
-    monkeypatch.setattr(chain, "LAZY_FRAMES", 0)
+    """The kernels whatever the clip's length (numpy below :data:`compiled.LAZY_FRAMES` otherwise)."""
+    monkeypatch.setattr(compiled, "LAZY_FRAMES", 0)
 
 
 def _quantise(clip: Clip, tol: np.ndarray, compiled: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -65,3 +65,22 @@ def test_same_file_either_path(kernels_always: None) -> None:
     finally:
         ikjit.set_enabled(old)
     assert mocapz.compress(m, codec="quant", max_error="1cm") == plain
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_lifting_kernel_gives_the_numpy_bits(seed: int) -> None:
+    """:mod:`.liftkernels` codes the details with the NumPy path's float operations in its order: the same
+    integers and decoded residual to the bit, on smooth and flat residuals, free columns and every depth."""
+    rng = np.random.default_rng(seed)
+    for _ in range(40):
+        frames, cols, depth = int(rng.integers(1, 600)), int(rng.integers(1, 7)), int(rng.integers(0, 7))
+        x = np.cumsum(rng.normal(size=(frames, cols)), axis=0) * float(rng.choice([0.01, 1.0, 100.0]))
+        x[: int(rng.integers(0, frames + 1))] = 0.0
+        tol = rng.uniform(0.01, 2.0, size=(frames, cols))
+        tol[:, 0] = lifting.BIG if rng.random() < 0.3 else tol[:, 0]
+        shrink = float(rng.choice([1.0, 0.85, 0.7]))
+        qa, ya = lifting.quantise(x, tol, depth, shrink, compiled=True)
+        qb, yb = lifting.quantise(x, tol, depth, shrink, compiled=False)
+        assert np.array_equal(qa, qb)
+        assert np.array_equal(ya, yb)
+        assert np.array_equal(lifting.decode(qa, tol, depth, shrink), ya)

@@ -116,7 +116,11 @@ def groups_moving(lay: Layout, points: np.ndarray) -> np.ndarray:
     """``(frames, groups)`` True where a group moves one of the ``(frames, points)`` True points."""
     if lay.acts.shape[0] == lay.acts.shape[1] and np.array_equal(lay.acts, np.eye(lay.acts.shape[0], dtype=bool)):
         return points.copy()  # markers: each group is its own point
-    return (points.astype(np.float32) @ lay.acts.T.astype(np.float32)) > 0
+    out = np.zeros((points.shape[0], lay.n_groups), dtype=bool)
+    rows = np.flatnonzero(points.any(axis=1))  # the frames with a point at all (misses are few)
+    if rows.size:
+        out[rows] = (points[rows].astype(np.float32) @ lay.acts.T.astype(np.float32)) > 0
+    return out
 
 
 def tighten(levels: np.ndarray, cap: np.ndarray, lay: Layout, misses: np.ndarray, step: int = 1,

@@ -19,17 +19,17 @@ Shapes: values ``(frames, columns)`` in the file's units (angles in the file's a
 
 from __future__ import annotations
 
-import sys
 from types import ModuleType
 
 import numpy as np
 
 from mocapz.codecs.correction import lifting
+from mocapz.codecs.correction.compiled import kernels
 from mocapz.model.kinematics import euler_angles, euler_rotations, local_translations
 from mocapz.model.motion import Motion
 
-LAZY_FRAMES = 500  # frames from which the compiled kernels are loaded (when numba is not loaded already)
 MAX_TURN = 0.3  # radians a bone is turned at most to aim at its child (beyond: its global rotation is matched)
+COS_TURN = float(np.cos(MAX_TURN))
 
 
 class Chain:
@@ -70,6 +70,15 @@ class Chain:
         self.euler3 = [np.array([sl.start + chs.index(f"{a}rotation") for a in order], dtype=np.int64)
                        if len(order) == 3 and len(set(order.upper())) == 3 else None
                        for sl, chs, order in zip(self.slices, sk.channels, sk.rotation_order, strict=True)]
+        # per joint, what every round of the loop asks for: the columns coded against their own original, the
+        # axes and axis frame, and (feedback joints) the original angles the goal's are taken nearest to
+        self.plain = [np.arange(sl.start, sl.stop) if rot is None or not fb
+                      else np.setdiff1d(np.arange(sl.start, sl.stop), rot)
+                      for sl, rot, fb in zip(self.slices, self.rot_cols, self.feedback, strict=True)]
+        self.axes = [_axes(order) for order in sk.rotation_order]
+        self.axis_of = [self._axis(j) for j in range(sk.n_joints)]
+        self.near = [np.ascontiguousarray(self.values[:, rot]) if fb else None
+                     for rot, fb in zip(self.rot_cols, self.feedback, strict=True)]
 
     def levers(self, channels: np.ndarray) -> np.ndarray:
         """``(joints,)`` how far a rotation error of each joint moves a point (per radian, file units): the
@@ -104,14 +113,14 @@ class Chain:
         p_dec = np.empty((frames, sk.n_joints, 3))
         half = self.period / 2
         kern = kernels(frames)
+        compiled = kern is not None
         for j in range(sk.n_joints):
             sl = self.slices[j]
             p = sk.parents[j]
             rot = self.rot_cols[j] if self.feedback[j] else None
-            own = np.arange(sl.start, sl.stop)
-            plain = own if rot is None else np.setdiff1d(own, rot)
+            plain = self.plain[j]
             if plain.size:  # translations, and rotations coded against their own original
-                q[:, plain], y[:, plain] = lifting.quantise(x[:, plain], tol[:, plain], levels, shrink)
+                q[:, plain], y[:, plain] = lifting.quantise(x[:, plain], tol[:, plain], levels, shrink, compiled)
             trans = self._translation(j, base[:, sl] + y[:, sl])
             if kern is not None:
                 kern.place(g_dec, p_dec, j, p, trans)
@@ -120,11 +129,11 @@ class Chain:
             if rot is not None:
                 angles = self._goal_angles(j, g_dec, p_dec, kern)
                 x[:, rot] = np.mod(angles - base[:, rot] + half, self.period) - half
-                q[:, rot], y[:, rot] = lifting.quantise(x[:, rot], tol[:, rot], levels, shrink)
+                q[:, rot], y[:, rot] = lifting.quantise(x[:, rot], tol[:, rot], levels, shrink, compiled)
             cols = self.euler3[j]
             if kern is not None and cols is not None:
                 kern.compose(g_dec, j, p, np.ascontiguousarray(base[:, cols] + y[:, cols]), self.scale,
-                             _axes(sk.rotation_order[j]), self._axis(j), self.turned[j])
+                             self.axes[j], self.axis_of[j], self.turned[j])
                 continue
             g_dec[:, j] = self._local(j, base[:, sl] + y[:, sl])
             if p >= 0:
@@ -145,10 +154,9 @@ class Chain:
         if kern is not None:
             out = np.empty((g_dec.shape[0], 3))
             i, k, m = ("XYZ".index(a) for a in order.upper())
-            kern.goal_angles(g_dec, p_dec, j, p, self.global_rot, self.positions, aim, float(np.cos(MAX_TURN)),
-                             self._axis(j), self.turned[j], np.array([i, k, m], dtype=np.int64),
-                             1.0 if (k - i) % 3 == 1 else -1.0, self.scale,
-                             np.ascontiguousarray(self.values[:, rot]), self.period, out)
+            kern.goal_angles(g_dec, p_dec, j, p, self.global_rot, self.positions, aim, COS_TURN,
+                             self.axis_of[j], self.turned[j], np.array([i, k, m], dtype=np.int64),
+                             1.0 if (k - i) % 3 == 1 else -1.0, self.scale, self.near[j], self.period, out)
             return out
         goal = self.global_rot[:, j]
         if aim >= 0:  # turn the bone to point from the decoded joint at the original child
@@ -210,22 +218,6 @@ class Chain:
 
 def _axes(order: str) -> np.ndarray:
     return np.array(["XYZ".index(a) for a in order.upper()], dtype=np.int64)
-
-
-def kernels(frames: int) -> ModuleType | None:
-    """The compiled kernels (:mod:`.chainkernels`) for a clip of ``frames`` frames, or None: without numba, when
-    turned off (:func:`mocapz.codecs.pga.ikjit.set_enabled`, ``MOCAPZ_NO_NUMBA``), or on a short clip while
-    numba is not loaded yet (loading it costs more than the NumPy path spends there)."""
-    from mocapz.codecs.pga import ikjit  # the one switch of the compiled kernels (here: no import cycle)
-
-    if not ikjit.enabled() or (frames < LAZY_FRAMES and "numba" not in sys.modules) \
-            or not ikjit.room_to_compile():
-        return None
-    try:
-        from mocapz.codecs.correction import chainkernels
-    except ImportError:  # numba not installed
-        return None
-    return chainkernels
 
 
 def _turn(a: np.ndarray, b: np.ndarray, most: float) -> np.ndarray:

@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from mocapz.codecs.correction.compiled import kernels
 from mocapz.errors import FormatError
 from mocapz.format.entropy import decode_int_matrix, encode_int_matrix, read_uvarint, write_uvarint
 
@@ -67,12 +68,14 @@ def _predict(y: np.ndarray, h: int) -> tuple[slice, np.ndarray]:
     return new, pred
 
 
-def quantise(x: np.ndarray, tol: np.ndarray, levels: int, shrink: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
+def quantise(x: np.ndarray, tol: np.ndarray, levels: int, shrink: float = 1.0,
+             compiled: bool | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Quantise residual ``x`` ``(frames, columns)`` within ``tol`` ``(frames, columns)`` (> 0, ``BIG`` =
     free), level ``l`` within ``tol * shrink ** l``.
 
     Returns the integers ``(padded frames, columns)`` (coarse knot differences, then the details level by
-    level) and the decoded residual ``(frames, columns)`` (what :func:`decode` gives).
+    level) and the decoded residual ``(frames, columns)`` (what :func:`decode` gives). ``compiled``: code the
+    details with the compiled kernel (:mod:`.liftkernels`, the same bits), None: when it is worth loading.
     """
     frames, cols = x.shape
     lv, n = plan(frames, levels)
@@ -82,6 +85,13 @@ def quantise(x: np.ndarray, tol: np.ndarray, levels: int, shrink: float = 1.0) -
     step0 = 2.0 * level_factor(lv, shrink) * tp[::span].min(axis=0)  # (columns,)
     q0 = np.round(xp[::span] / step0).astype(np.int64)
     y[::span] = q0 * step0
+    kern = kernels(frames, "liftkernels") if compiled is None else (kernels(0, "liftkernels") if compiled else None)
+    if kern is not None and lv and np.isfinite(xp).all():
+        q = np.empty((n, cols), dtype=np.int64)
+        q[:len(q0)] = np.diff(q0, axis=0, prepend=0)
+        factors = np.array([level_factor(level, shrink) for level in range(lv)])
+        kern.details(np.ascontiguousarray(xp), np.ascontiguousarray(tp), y, q, lv, factors, STEP, len(q0))
+        return q, y[:frames]
     parts = [np.diff(q0, axis=0, prepend=0)]
     for level in range(lv - 1, -1, -1):
         h = 1 << level
