@@ -19,6 +19,7 @@ Shapes: values ``(frames, columns)`` in the file's units (angles in the file's a
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from types import ModuleType
 
 import numpy as np
@@ -79,6 +80,7 @@ class Chain:
         self.axis_of = [self._axis(j) for j in range(sk.n_joints)]
         self.near = [np.ascontiguousarray(self.values[:, rot]) if fb else None
                      for rot, fb in zip(self.rot_cols, self.feedback, strict=True)]
+        self.last: _Last | None = None  # what the last call of quantise kept (compiled kernels)
 
     def levers(self, channels: np.ndarray) -> np.ndarray:
         """``(joints,)`` how far a rotation error of each joint moves a point (per radian, file units): the
@@ -105,50 +107,81 @@ class Chain:
         sites: the loop has composed them already)."""
         sk = self.skeleton
         frames, cols = x.shape
-        x = x.copy()
         _, n = lifting.plan(frames, levels)
         q = np.zeros((n, cols), dtype=np.int64)
         y = np.zeros_like(x)
-        g_dec = np.empty((frames, sk.n_joints, 3, 3))
-        p_dec = np.empty((frames, sk.n_joints, 3))
-        half = self.period / 2
         kern = kernels(frames)
         compiled = kern is not None
+        last = self.last
+        if compiled and last is not None and last.x is x and last.base is base and last.key == (levels, shrink):
+            goal, g_dec, p_dec, y_old = last.goal, last.g_dec, last.p_dec, last.y  # only what changed is redone
+        else:
+            goal, g_dec, p_dec, y_old = x.copy(), np.empty((frames, sk.n_joints, 3, 3)), \
+                np.empty((frames, sk.n_joints, 3)), None
+        moved_g: list[np.ndarray] = []  # per joint: the frames where its decoded global rotation may have moved
+        moved_p: list[np.ndarray] = []  # and its decoded position
         for j in range(sk.n_joints):
             sl = self.slices[j]
             p = sk.parents[j]
             rot = self.rot_cols[j] if self.feedback[j] else None
             plain = self.plain[j]
             if plain.size:  # translations, and rotations coded against their own original
-                q[:, plain], y[:, plain] = lifting.quantise(x[:, plain], tol[:, plain], levels, shrink, compiled)
+                q[:, plain], y[:, plain] = lifting.quantise(goal[:, plain], tol[:, plain], levels, shrink, compiled)
             trans = self._translation(j, base[:, sl] + y[:, sl])
             if kern is not None:
                 kern.place(g_dec, p_dec, j, p, trans)
             else:
                 p_dec[:, j] = trans if p < 0 else p_dec[:, p] + np.einsum("fab,fb->fa", g_dec[:, p], trans)
+            own = _changed(y, y_old, plain)
+            moved_p.append(own if p < 0 else own | moved_p[p] | moved_g[p])
             if rot is not None:
-                angles = self._goal_angles(j, g_dec, p_dec, kern)
-                x[:, rot] = np.mod(angles - base[:, rot] + half, self.period) - half
-                q[:, rot], y[:, rot] = lifting.quantise(x[:, rot], tol[:, rot], levels, shrink, compiled)
+                self._goal_residual(j, g_dec, p_dec, kern, base, goal, moved_p[j] | moved_g[p])
+                q[:, rot], y[:, rot] = lifting.quantise(goal[:, rot], tol[:, rot], levels, shrink, compiled)
             cols = self.euler3[j]
             if kern is not None and cols is not None:
+                own = _changed(y, y_old, cols)
+                moved_g.append(own if p < 0 else own | moved_g[p])
                 kern.compose(g_dec, j, p, np.ascontiguousarray(base[:, cols] + y[:, cols]), self.scale,
-                             self.axes[j], self.axis_of[j], self.turned[j])
+                             self.axes[j], self.axis_of[j], self.turned[j], np.flatnonzero(moved_g[j]))
                 continue
+            before = g_dec[:, j].copy() if y_old is not None else None
             g_dec[:, j] = self._local(j, base[:, sl] + y[:, sl])
             if p >= 0:
                 g_dec[:, j] = g_dec[:, p] @ g_dec[:, j]
+            moved_g.append(np.ones(frames, bool) if before is None else np.any(g_dec[:, j] != before, axis=(1, 2)))
         pos = np.empty((frames, sk.n_points, 3))
         pos[:, : sk.n_joints] = p_dec
         for e, (j, off, _) in enumerate(sk.end_sites):
             pos[:, sk.n_joints + e] = p_dec[:, j] + g_dec[:, j] @ np.asarray(off)
+        self.last = _Last(x, base, (levels, shrink), goal, g_dec, p_dec, y.copy()) if compiled else None
         return q, y, pos
 
-    def _goal_angles(self, j: int, g_dec: np.ndarray, p_dec: np.ndarray, kern: ModuleType | None) -> np.ndarray:
+    def forget(self) -> None:
+        """Drop what :meth:`quantise` kept of its last call (the next call codes every frame anew)."""
+        self.last = None
+
+    def _goal_residual(self, j: int, g_dec: np.ndarray, p_dec: np.ndarray, kern: ModuleType | None,
+                       base: np.ndarray, goal: np.ndarray, moved: np.ndarray) -> None:
+        """The residual of feedback joint ``j``'s rotation columns against its goal angles (:meth:`_goal_angles`),
+        wrapped, into ``goal`` ``(frames, columns)``: with the compiled kernels on the frames ``moved`` only
+        (the others' decoded parent and position are those of the call before), else on every frame."""
+        rot = self.rot_cols[j]
+        half = self.period / 2
+        if kern is None:
+            goal[:, rot] = np.mod(self._goal_angles(j, g_dec, p_dec, None) - base[:, rot] + half, self.period) - half
+            return
+        rows = np.flatnonzero(moved)
+        if rows.size:
+            angles = self._goal_angles(j, g_dec, p_dec, kern, rows)
+            goal[rows[:, None], rot] = np.mod(angles[rows] - base[rows][:, rot] + half, self.period) - half
+
+    def _goal_angles(self, j: int, g_dec: np.ndarray, p_dec: np.ndarray, kern: ModuleType | None,
+                     rows: np.ndarray | None = None) -> np.ndarray:
         """Euler angles ``(frames, 3)`` (file unit, nearest the original's) of feedback joint ``j``'s local
         rotation that gives back its original global rotation under its decoded parent (global rotations
         ``g_dec`` ``(frames, joints, 3, 3)``), the bone turned first to point from the decoded joint (positions
-        ``p_dec`` ``(frames, joints, 3)``) at the original child."""
+        ``p_dec`` ``(frames, joints, 3)``) at the original child; the compiled kernel fills the frames ``rows``
+        only (default: all)."""
         sk = self.skeleton
         p, aim, rot, order = sk.parents[j], int(self.aim[j]), self.rot_cols[j], sk.rotation_order[j]
         if kern is not None:
@@ -156,7 +189,8 @@ class Chain:
             i, k, m = ("XYZ".index(a) for a in order.upper())
             kern.goal_angles(g_dec, p_dec, j, p, self.global_rot, self.positions, aim, COS_TURN,
                              self.axis_of[j], self.turned[j], np.array([i, k, m], dtype=np.int64),
-                             1.0 if (k - i) % 3 == 1 else -1.0, self.scale, self.near[j], self.period, out)
+                             1.0 if (k - i) % 3 == 1 else -1.0, self.scale, self.near[j], self.period, out,
+                             np.arange(len(out)) if rows is None else rows)
             return out
         goal = self.global_rot[:, j]
         if aim >= 0:  # turn the bone to point from the decoded joint at the original child
@@ -214,6 +248,33 @@ class Chain:
                 best = np.where(closer[:, None], s, best)
         assert best is not None
         return best
+
+
+@dataclass
+class _Last:
+    """What :meth:`Chain.quantise` keeps of its last call with the compiled kernels: its arguments (``x``,
+    ``base``, ``(levels, shrink)``), the residuals coded (feedback joints' against their goal), the decoded
+    global rotations and positions, and the decoded residual. A call on the same ``x`` and ``base`` (the
+    rounds of one fit, which change the tolerances only) redoes the goals and rotations only on the frames
+    where a decoded value above them changed: each frame's are computed on their own, so the result is
+    the same to the bit."""
+
+    x: np.ndarray
+    base: np.ndarray
+    key: tuple[int, float]
+    goal: np.ndarray
+    g_dec: np.ndarray
+    p_dec: np.ndarray
+    y: np.ndarray
+
+
+def _changed(y: np.ndarray, before: np.ndarray | None, cols: np.ndarray) -> np.ndarray:
+    """``(frames,)`` True where a column ``cols`` of ``y`` differs from ``before`` (every frame without it)."""
+    if before is None:
+        return np.ones(y.shape[0], dtype=bool)
+    if not cols.size:
+        return np.zeros(y.shape[0], dtype=bool)
+    return np.any(y[:, cols] != before[:, cols], axis=1)
 
 
 def _axes(order: str) -> np.ndarray:

@@ -77,11 +77,11 @@ def place(g, p, j: int, parent: int, trans) -> None:
 
 @jit
 def goal_angles(g, p, j: int, parent: int, global_rot, positions, aim: int, cos_most: float, axis,
-                turned: bool, ijk, sign: float, scale: float, near, period: float, out) -> None:
+                turned: bool, ijk, sign: float, scale: float, near, period: float, out, rows) -> None:
     """Euler angles ``out`` ``(frames, 3)`` (file unit, of the two solutions and every turn the nearest
     ``near``) of the local rotation that, under the decoded parent, gives joint ``j``'s original global
     rotation, its bone first turned (at most ``acos(cos_most)``) to point from the decoded joint at the
-    original child ``aim`` (-1: none)."""
+    original child ``aim`` (-1: none); on the frames ``rows`` only (each frame on its own)."""
     goal = np.empty((3, 3))
     turn = np.empty((3, 3))
     tmp = np.empty((3, 3))
@@ -89,7 +89,8 @@ def goal_angles(g, p, j: int, parent: int, global_rot, positions, aim: int, cos_
     kk = np.empty((3, 3))
     i, jj, k = ijk[0], ijk[1], ijk[2]
     half = period / 2.0
-    for f in range(near.shape[0]):
+    for row in range(rows.size):
+        f = rows[row]
         for a in range(3):
             for b in range(3):
                 goal[a, b] = global_rot[f, j, a, b]
@@ -146,14 +147,15 @@ def goal_angles(g, p, j: int, parent: int, global_rot, positions, aim: int, cos_
 
 
 @jit
-def compose(g, j: int, parent: int, values, scale: float, axes, axis, turned: bool) -> None:
+def compose(g, j: int, parent: int, values, scale: float, axes, axis, turned: bool, rows) -> None:
     """Decoded global rotation of joint ``j`` into ``g``: the decoded parent's times the local rotation of the
     decoded Euler ``values`` ``(frames, 3)`` (file unit) about ``axes``, in the joint's ``axis`` frame when
-    ``turned`` (ASF)."""
+    ``turned`` (ASF); on the frames ``rows`` only."""
     loc = np.empty((3, 3))
     tmp = np.empty((3, 3))
     ang = np.empty(3)
-    for f in range(values.shape[0]):
+    for row in range(rows.size):
+        f = rows[row]
         for a in range(3):
             ang[a] = values[f, a] * scale
         _euler(ang, axes, loc)

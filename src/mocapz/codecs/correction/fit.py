@@ -291,6 +291,8 @@ def fit(clip: Clip, base: np.ndarray, e: float, relax_by: float = bounds.RELAX, 
             break
         last = None
     q, y, pos = _settle(clip, x, base, t0, levels, cap, bound, depth, last)
+    if clip.chain is not None:
+        clip.chain.forget()  # what the rounds shared
     sections = {
         "c.codes": pack_uint64(codes.astype(np.uint64)),
         "c.levels": encode_int_matrix(np.diff(levels, axis=0, prepend=0)),
