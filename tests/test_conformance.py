@@ -473,3 +473,22 @@ def test_tiny_clip_round_trips_or_fails_cleanly(codec: str, kind: str, frames: i
         return
     assert_same_layout(motion, decoded)
     assert_values_conform(get_codec(codec), motion, decoded)
+
+
+@pytest.mark.parametrize("name", codec_names())
+def test_encoder_and_decoder_run_on_one_blas_thread(name: str) -> None:
+    """Every registered codec's encoder and decoder run with BLAS on one thread (small matrices are slower spread
+    over threads, far slower on a busy machine, and the sums of some routines change order with the thread
+    count); the caller's setting is back once they return."""
+    from threadpoolctl import threadpool_info
+
+    from mocapz._blas import on_one_thread
+
+    def blas_threads() -> list[int]:
+        return [m["num_threads"] for m in threadpool_info() if m["user_api"] == "blas"]
+
+    info = get_codec(name)
+    assert callable(getattr(info.encode, "__wrapped__", None)) and callable(getattr(info.decode, "__wrapped__", None))
+    before = blas_threads()
+    assert on_one_thread(blas_threads)() == [1] * len(before)
+    assert blas_threads() == before

@@ -11,9 +11,10 @@ from __future__ import annotations
 
 import importlib
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
+from mocapz._blas import on_one_thread
 from mocapz.codecs.options import Option, validate
 from mocapz.errors import OptionError
 from mocapz.model.header import ClipHeader
@@ -80,8 +81,14 @@ def all_codecs() -> list[CodecInfo]:
 
 
 def _loader(module: str) -> Callable[[], CodecInfo]:
+    loaded: list[CodecInfo] = []
+
     def load() -> CodecInfo:
-        return importlib.import_module(module).INFO  # type: ignore[no-any-return]
+        """The module's codec, its encoder and decoder run with one BLAS thread (:func:`mocapz._blas.one_thread`)."""
+        if not loaded:
+            info: CodecInfo = importlib.import_module(module).INFO
+            loaded.append(replace(info, encode=on_one_thread(info.encode), decode=on_one_thread(info.decode)))
+        return loaded[0]
 
     return load
 

@@ -47,7 +47,7 @@ def one_blas_thread() -> contextlib.AbstractContextManager[Any]:
         from threadpoolctl import threadpool_limits
     except ImportError:  # pragma: no cover - threadpoolctl comes with scikit-learn
         return contextlib.nullcontext()
-    return threadpool_limits(limits=1)
+    return threadpool_limits(limits=1)  # applied at once (the worker's limit for good, :func:`_limit_blas_once`)
 
 
 _BLAS_LIMITED = False

@@ -173,7 +173,8 @@ class Chain:
         rows = np.flatnonzero(moved)
         if rows.size:
             angles = self._goal_angles(j, g_dec, p_dec, kern, rows)
-            goal[rows[:, None], rot] = np.mod(angles[rows] - base[rows][:, rot] + half, self.period) - half
+            at = np.ix_(rows, rot)
+            goal[at] = np.mod(angles[rows] - base[at] + half, self.period) - half
 
     def _goal_angles(self, j: int, g_dec: np.ndarray, p_dec: np.ndarray, kern: ModuleType | None,
                      rows: np.ndarray | None = None) -> np.ndarray:
