@@ -114,3 +114,19 @@ def test_rounds_redo_only_what_moved(rel: str, frames: int | None, kernels_alway
         assert np.array_equal(qa, qb)
         assert np.array_equal(ya, yb)
         assert np.array_equal(pa, pb)
+
+
+def test_a_block_of_a_long_clip_loads_the_kernels() -> None:
+    """A block is short, but the job is its whole clip: the compiled kernels pay for loading there, so the
+    block's closed loop uses them as the whole clip's would (the NumPy path below LAZY_FRAMES is for short jobs)."""
+    from dataclasses import replace
+
+    from mocapz.model.motion import BlockOf
+
+    m = mocapz.load(data_path("cmu/bvh/06_13.bvh"))
+    piece = m.slice(0, 120)
+    piece = replace(piece, metadata={**piece.metadata, "block_of": BlockOf(m, 0, 120, {})})
+    clip = Clip(piece, True)
+    assert clip.chain is not None
+    assert clip.work == clip.chain.work == m.n_frames
+    assert chain.kernels(max(120, clip.chain.work)) is not None

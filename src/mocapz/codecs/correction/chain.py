@@ -81,6 +81,7 @@ class Chain:
         self.near = [np.ascontiguousarray(self.values[:, rot]) if fb else None
                      for rot, fb in zip(self.rot_cols, self.feedback, strict=True)]
         self.last: _Last | None = None  # what the last call of quantise kept (compiled kernels)
+        self.work = motion.n_frames  # frames of the whole job (a block's clip): whether the kernels pay for loading
 
     def levers(self, channels: np.ndarray) -> np.ndarray:
         """``(joints,)`` how far a rotation error of each joint moves a point (per radian, file units): the
@@ -110,7 +111,7 @@ class Chain:
         _, n = lifting.plan(frames, levels)
         q = np.zeros((n, cols), dtype=np.int64)
         y = np.zeros_like(x)
-        kern = kernels(frames)
+        kern = kernels(max(frames, self.work))
         compiled = kern is not None
         last = self.last
         if compiled and last is not None and last.x is x and last.base is base and last.key == (levels, shrink):

@@ -10,6 +10,7 @@ import sys
 from types import ModuleType
 
 LAZY_FRAMES = 500  # frames from which the compiled kernels are loaded (when numba is not loaded already)
+_LOADED: dict[str, ModuleType] = {}  # the kernel modules imported so far (a look-up per call, not an import)
 
 
 def kernels(frames: int, module: str = "chainkernels") -> ModuleType | None:
@@ -21,7 +22,9 @@ def kernels(frames: int, module: str = "chainkernels") -> ModuleType | None:
     if not ikjit.enabled() or (frames < LAZY_FRAMES and "numba" not in sys.modules) \
             or not ikjit.room_to_compile():
         return None
-    try:
-        return importlib.import_module(f"{__package__}.{module}")
-    except ImportError:  # numba not installed
-        return None
+    if module not in _LOADED:
+        try:
+            _LOADED[module] = importlib.import_module(f"{__package__}.{module}")
+        except ImportError:  # numba not installed
+            return None
+    return _LOADED[module]

@@ -16,6 +16,7 @@ import numpy as np
 
 from mocapz.codecs.correction import bounds, context, feet, lifting
 from mocapz.codecs.correction.chain import Chain
+from mocapz.codecs.correction.compiled import kernels
 from mocapz.codecs.target import ErrorMetric, Errors
 from mocapz.format.entropy import encode_int_matrix, pack_uint64
 from mocapz.metrics.contacts import find_contacts
@@ -83,7 +84,9 @@ class Clip:
 
     def __init__(self, motion: AnyMotion, hold_feet: bool) -> None:
         self.motion = motion
-        self.metric = ErrorMetric(motion)
+        fk = forward_kinematics(motion.skeleton, motion.channels) if isinstance(motion, Motion) and motion.n_frames \
+            else None  # positions and global rotations, computed once for the metric and the closed loop
+        self.metric = ErrorMetric(motion, None if fk is None else fk[0])
         self.positions = self.metric.positions
         self.valid = np.ones(self.positions.shape[:2], dtype=bool) if self.metric.valid is None \
             else self.metric.valid
@@ -91,9 +94,13 @@ class Clip:
         self.rot, self.period = rotation_period(motion)
         self.shrink = SHRINK
         self.chain = None
-        if isinstance(motion, Motion) and motion.n_frames:
-            self.chain = Chain(motion, self.positions, forward_kinematics(motion.skeleton, motion.channels)[1])
+        if fk is not None:
+            self.chain = Chain(motion, self.positions, fk[1])
         self.whole = context.block_of(motion)  # the clip this is a block of: decide as on the whole clip
+        # frames of the whole job (a block's clip, a stream's window): whether the compiled kernels pay for loading
+        self.work = motion.n_frames if self.whole is None else max(motion.n_frames, self.whole.clip.n_frames)
+        if self.chain is not None:
+            self.chain.work = self.work
         self.layout = self._layout()
         self.levels = lifting_levels(motion.frame_rate)
         if not hold_feet:
@@ -205,7 +212,7 @@ class Clip:
         residual and the decoded positions ``(frames, points, 3)``."""
         if self.chain is not None:
             return self.chain.quantise(x, base, tol, depth, self.shrink)
-        q, y = lifting.quantise(x, tol, depth, self.shrink)
+        q, y = lifting.quantise(x, tol, depth, self.shrink, kernels(self.work, "liftkernels") is not None)
         return q, y, self.positions_of(base + y)
 
     def positions_of(self, values: np.ndarray) -> np.ndarray:
