@@ -59,13 +59,12 @@ def lifting_levels(frame_rate: float) -> int:
 
 @dataclass
 class Correction:
-    """One coded correction: ``sections`` (``c.*``), its ``size`` in bytes, the corrected positions
-    ``(frames, points, 3)``, their figures, the bound ``e`` it was made for and its added acceleration
-    energy (``jitter``, a fraction)."""
+    """One coded correction: ``sections`` (``c.*``), its ``size`` in bytes, the figures of the corrected
+    positions, the bound ``e`` it was made for and its added acceleration energy (``jitter``, a fraction). The
+    corrected positions themselves are not kept (a clip's worth of memory per correction)."""
 
     sections: dict[str, bytes]
     size: int
-    positions: np.ndarray
     errors: Errors
     bound: float
     jitter: float = 0.0
@@ -157,8 +156,8 @@ class Clip:
 
     def point_bounds(self, e: float) -> np.ndarray:
         """``(frames, points)`` position bounds: ``e`` on every point (planted feet are held by their speed,
-        :meth:`skate`)."""
-        return np.full(self.positions.shape[:2], e)
+        :meth:`skate`); a read-only view of the one value."""
+        return np.broadcast_to(np.float64(e), self.positions.shape[:2])
 
     def residual(self, base: np.ndarray) -> np.ndarray:
         """``(frames, columns)`` original minus decoded values (angles wrapped to the nearest turn; 0 where a
@@ -264,7 +263,6 @@ def fit(clip: Clip, base: np.ndarray, e: float, relax_by: float = bounds.RELAX, 
     tighter = bounds.groups_moving(lay, clip.held()) & feet[None, :]
     levels = np.where(tighter, np.maximum(cap - relax + FOOT_START, 0), np.maximum(cap - relax, 0))
     valid = clip.valid
-    cap_jitter = cap + JITTER_LEVELS
     smooth = e <= clip.smooth_up_to()
     jit = 0.0
     last = None  # the coding of the current levels
@@ -284,10 +282,11 @@ def fit(clip: Clip, base: np.ndarray, e: float, relax_by: float = bounds.RELAX, 
         elif smooth:
             jit, shaky = clip.jitter(pos)
             if shaky.any():
-                todo.append((shaky, cap_jitter, 2, None))
+                todo.append((shaky, cap + JITTER_LEVELS, 2, None))
         skate, sliding = clip.skate(pos)
         if skate > clip.skate_limit() and sliding.any():  # the joints above the feet, or every joint above them
-            todo.append((sliding, cap_jitter, 1, feet if skate < STALLED * slid else None))  # if that did not help
+            allowed = feet if skate < STALLED * slid else None  # if that did not help
+            todo.append((sliding, cap + JITTER_LEVELS, 1, allowed))
             slid = skate
         moved = False
         for samples, limit, step, only in todo:
@@ -296,17 +295,23 @@ def fit(clip: Clip, base: np.ndarray, e: float, relax_by: float = bounds.RELAX, 
                 only is not None and bounds.tighten(levels, limit, lay, samples, step))  # then every joint above
         if not moved:
             break
+        # this round's coding is done with: the next one is made without it beside (peak memory)
         last = None
+        del q, y, pos, err, misses, todo, samples
     q, y, pos = _settle(clip, x, base, t0, levels, cap, bound, depth, last)
     if clip.chain is not None:
         clip.chain.forget()  # what the rounds shared
+    frames = x.shape[0]
+    del last, x, y  # what is left to do needs the positions' figures and the integers only
+    errors, added = clip.metric.of_positions(pos), clip.added_energy(pos)
+    del pos  # the integers are packed without it (the entropy coders' work space comes on top)
     sections = {
         "c.codes": pack_uint64(codes.astype(np.uint64)),
         "c.levels": encode_int_matrix(np.diff(levels, axis=0, prepend=0)),
-        "c.res": lifting.pack(q, x.shape[0], depth),
+        "c.res": lifting.pack(q, frames, depth),
     }
     size = sum(len(v) + 8 for v in sections.values())
-    return Correction(sections, size, pos, clip.metric.of_positions(pos), e, jit, clip.added_energy(pos), depth)
+    return Correction(sections, size, errors, e, jit, added, depth)
 
 
 def _widen(samples: np.ndarray) -> np.ndarray:
@@ -328,7 +333,7 @@ def _settle(clip: Clip, x: np.ndarray, base: np.ndarray, t0: np.ndarray, levels:
     Returns the integers, the decoded residual and the corrected positions; ``levels`` is raised in place.
     ``last``: the coding of ``levels`` as they are, when the caller has it."""
     lay = clip.layout
-    for _ in range(MAX_ROUNDS):
+    for round_ in range(MAX_ROUNDS):
         q, y, pos = last if last is not None else clip.quantise(x, base, bounds.tolerances(t0, lay, levels), depth)
         last = None
         with np.errstate(invalid="ignore"):
@@ -341,4 +346,6 @@ def _settle(clip: Clip, x: np.ndarray, base: np.ndarray, t0: np.ndarray, levels:
             if not up.any():
                 break
         levels[up] = cap[up]
+        if round_ + 1 < MAX_ROUNDS:  # this coding is not kept beside the next one (peak memory)
+            del q, y, pos
     return q, y, pos

@@ -48,26 +48,39 @@ def search_bases(clip: Clip, bases: list[np.ndarray], extra: list[int], target: 
         for base in bases:
             found.append(_search_whole(clip, base, target, depth if not found else found[0].depth))
         return _smallest(found, extra)
-    share = clip.motion.n_frames / sum(c.motion.n_frames for c, _ in parts)
-    predicted: list[tuple[float, float, tuple[float, int]]] = []  # per base: bytes, start bound, setting
-    for i, base in enumerate(bases):
-        dp = depth if i == 0 else predicted[0][2][1]
-        settings = _settings(clip, dp)
-        per_part = [_each_setting(c, base[a], target, settings) for c, a in parts]
-        sizes = [sum(p[k].size for p in per_part) for k in range(len(settings))]
-        k = int(np.argmin(sizes))
-        start = math.exp(float(np.mean([math.log(p[k].bound) for p in per_part])))
-        predicted.append((extra[i] + share * sizes[k], start, settings[k]))
+    predicted = _predict(clip, parts, bases, extra, target, depth)
+    del parts  # the windows' clips are not kept beside the whole clip's coding (peak memory)
     best = int(np.argmin([p[0] for p in predicted]))
     _, start, setting = predicted[best]
     cor = bound_search(clip, bases[best], target, *setting, start=start)
     first = _settings(clip, depth if best == 0 else predicted[0][2][1])[0]
     if not target.met(cor.errors) and setting != first:
+        del cor  # replaced: not kept beside its replacement
         cor = bound_search(clip, bases[best], target, *first, start=start)
     if target.met(cor.errors) or len(bases) == 1:
         return best, cor
     found = [cor if i == best else _search_whole(clip, b, target, cor.depth) for i, b in enumerate(bases)]
     return _smallest(found, extra)
+
+
+def _predict(clip: Clip, parts: list[tuple[Clip, slice]], bases: list[np.ndarray], extra: list[int],
+             target: Target, depth: int | None) -> list[tuple[float, float, tuple[float, int]]]:
+    """Per base, what the windows ``parts`` of a long clip predict: the clip's bytes (its correction's, scaled
+    from the windows' to the clip, plus the base's own ``extra``), the bound to start the whole clip's search
+    from and the ``(relax_by, depth)`` setting; the first base's depth is searched (or ``depth``), the others
+    use the one it chose."""
+    share = clip.motion.n_frames / sum(c.motion.n_frames for c, _ in parts)
+    predicted: list[tuple[float, float, tuple[float, int]]] = []  # per base: bytes, start bound, setting
+    for i, base in enumerate(bases):
+        dp = depth if i == 0 else predicted[0][2][1]
+        settings = _settings(clip, dp)
+        # per window and setting (size, bound): the windows' corrections themselves are not kept
+        per_part = [[(c.size, c.bound) for c in _each_setting(w, base[a], target, settings)] for w, a in parts]
+        sizes = [sum(p[k][0] for p in per_part) for k in range(len(settings))]
+        k = int(np.argmin(sizes))
+        start = math.exp(float(np.mean([math.log(p[k][1]) for p in per_part])))
+        predicted.append((extra[i] + share * sizes[k], start, settings[k]))
+    return predicted
 
 
 def _settings(clip: Clip, depth: int | None) -> list[tuple[float, int]]:
@@ -77,10 +90,17 @@ def _settings(clip: Clip, depth: int | None) -> list[tuple[float, int]]:
 
 
 def _search_whole(clip: Clip, base: np.ndarray, target: Target, depth: int | None) -> Correction:
-    """Every setting coded on the whole clip; the smallest met (else the first)."""
-    tried = _each_setting(clip, base, target, _settings(clip, depth))
-    met = [c for c in tried if target.met(c.errors)]
-    return min(met, key=lambda c: c.size) if met else tried[0]
+    """Every setting coded on the whole clip; the smallest met (the first of equals), else the first (the
+    others are not kept while the next is coded: peak memory)."""
+    settings = _settings(clip, depth)
+    first = bound_search(clip, base, target, *settings[0])
+    best = first if target.met(first.errors) else None
+    for r, dp in settings[1:]:
+        cor = bound_search(clip, base, target, r, dp, start=first.bound)
+        if target.met(cor.errors) and (best is None or cor.size < best.size):
+            best = cor
+        del cor
+    return best if best is not None else first
 
 
 def _smallest(found: list[Correction], extra: list[int]) -> tuple[int, Correction]:

@@ -119,7 +119,8 @@ def corrected(encode: Encoder, decode: Decoder, codec: str, declared: tuple[Opti
         if zero_base and not fixed:
             zero = {"c.gaps": pack_mask(motion.missing)} if isinstance(motion, MarkerMotion) \
                 and motion.missing.any() else {}
-            tried.append((BASE_NONE, zero, np.zeros_like(clip.values)))
+            # zeros as a read-only view of one value: no frames x columns array kept for the zero base
+            tried.append((BASE_NONE, zero, np.broadcast_to(np.zeros((), dtype=clip.values.dtype), clip.values.shape)))
         best, cor = search_bases(clip, [t[2] for t in tried], [_size(t[1]) for t in tried], target)
         kind, base_sections, _ = tried[best]
         if not target.met(cor.errors):
