@@ -145,8 +145,10 @@ def test_lossy_blocks_keep_the_clip_figures_and_cost_little() -> None:
     """A clip in 2-s blocks is corrected as the whole clip would be (its contacts, its jitter allowance spent
     block after block): the default target, held feet and jitter hold on the whole clip, for a small fixed cost
     per block (each block's levels, scale bytes and first knot row, its step codes where they differ from the
-    block before's, which holds at a max-error target since a block's layout is the clip's: 132 B measured on 05_02,
-    +6.9 % of its 9.5 kB file at the default target)."""
+    block before's, which holds at a max-error target since a block's layout is the clip's: 246 B measured on 05_02,
+    +13.7 % of its 9.0 kB file at the default target, 305 B on 02_05 and 358 B on 09_12; 132 B on 05_02 before
+    contacts took the floor of the last 2 s, which plants its feet on more frames, each held run's residual
+    paid again in every block it spans)."""
     m = _load("cmu/bvh/05_02.bvh")
     whole = mocapz.compress(m, "quant")
     data = mocapz.compress(m, "quant", block="2s")
@@ -156,7 +158,7 @@ def test_lossy_blocks_keep_the_clip_figures_and_cost_little() -> None:
     assert rep.jitter_pct <= 5.0
     assert rep.foot_skate * m.unit_cm <= 0.5
     blocks = math.ceil(m.n_frames / (2 * m.frame_rate))
-    assert len(data) - len(whole) <= 170 * blocks
+    assert len(data) - len(whole) <= 300 * blocks
 
 
 def test_sections_equal_to_the_previous_blocks_are_written_once() -> None:

@@ -8,7 +8,8 @@
 
 A block is coded as soon as it is full (default 1 s of motion: the latency), as a clip of its own, as in a
 file coded in blocks (:mod:`mocapz.blocking`). What a block's correction decides on the whole clip in a file
-(foot contacts, body height) it decides on the last :data:`HISTORY_S` seconds, and the jitter allowance is
+(foot contacts, body height) it decides on the last :data:`HISTORY_S` seconds (more than the contacts' floor
+window, so a stream's contacts are the whole file's), and the jitter allowance is
 spent block after block against the energy seen so far; so memory stays bounded whatever the stream's
 length. The bytes (:mod:`mocapz.format.stream`) are a ``.mcz`` that :func:`mocapz.decompress` reads.
 """

@@ -2,7 +2,7 @@
 would be, so that coding a clip in blocks costs little.
 
 Three decisions depend on more than the block's own frames: the foot contacts (a foot is planted within 5 cm of
-its lowest height *in the clip*: a block where the feet never touch the clip's floor has no contact), the body
+its lowest height over the seconds before: a block's first frames look back into the block before it), the body
 height (bounds when the length unit is unknown) and the added acceleration energy allowed (a fraction of the
 original's: a calm block alone would get almost none). Each is computed once on the whole clip (memoised in
 ``BlockOf.cache``) and cut to the block. The jitter budget is spent block after block: a block may add what
