@@ -10,6 +10,9 @@ wrote it, so either side can read both kinds when its coder is present.
 
 from __future__ import annotations
 
+from collections.abc import Callable, Iterator
+from typing import Any
+
 import numpy as np
 import zstandard
 
@@ -37,6 +40,7 @@ SCALE_STEPS = 8  # scale quantisation: s = 2 ** ((q - 64) / 8)
 QUARTER_BIAS = 32  # CODER_RANGE_DELTA's scales: s = 2 ** ((q - 32) / 4), q in 0 .. QUARTER_TOP
 QUARTER_TOP = 127
 DELTA_SCALES = (0.5, 1.0, 2.0, 4.0, 8.0, 16.0)  # Laplace scales of the scale codes' differences (one byte picks)
+CHUNK_VALUES = 1 << 16  # values range coded per call of the coder (its per-value arrays: peak memory)
 
 
 _DELTA_MODEL = constriction.stream.model.QuantizedLaplace(-DELTA_LIMIT, DELTA_LIMIT) if HAVE_CONSTRICTION else None
@@ -76,8 +80,11 @@ def read_uvarint(buf: bytes | memoryview, pos: int) -> tuple[int, int]:
 
 
 def zigzag(v: np.ndarray) -> np.ndarray:
+    """``(v << 1) ^ (v >> 63)`` as uint64 (same shape and memory order as ``v``), in one new array."""
     v = np.asarray(v, dtype=np.int64)
-    return ((v << 1) ^ (v >> 63)).astype(np.uint64)
+    out = np.left_shift(v, 1, out=np.empty_like(v))
+    out ^= v >> 63
+    return out.view(np.uint64)
 
 
 def unzigzag(u: np.ndarray) -> np.ndarray:
@@ -88,13 +95,30 @@ def unzigzag(u: np.ndarray) -> np.ndarray:
 def pack_uint64(values: np.ndarray) -> bytes:
     """Pack non-negative integers as zstd-compressed byte planes (small-value friendly)."""
     u = np.ascontiguousarray(values, dtype=np.uint64).ravel()
-    nbytes = 1
-    if u.size:
-        top = int(u.max())
-        nbytes = max(1, (top.bit_length() + 7) // 8)
-    planes = u.view(np.uint8).reshape(-1, 8)[:, :nbytes].T.copy()
-    body = zstandard.ZstdCompressor(level=19).compress(planes.tobytes())
-    return write_uvarint(u.size) + bytes([nbytes]) + body
+    return _pack_planes(lambda: iter([u]), u.size)
+
+
+def pack_zigzag_columns(v: np.ndarray) -> bytes:
+    """``pack_uint64(zigzag(v.T))`` of an int64 matrix ``v`` ``(rows, columns)`` (its columns one after the
+    other), a few columns at a time: no whole-matrix temporaries beside the byte planes."""
+    rows, cols = v.shape
+    step = max(1, CHUNK_VALUES // max(rows, 1))
+    return _pack_planes(lambda: (zigzag(np.ascontiguousarray(v[:, a:a + step].T)).ravel()
+                                 for a in range(0, cols, step)), v.size)
+
+
+def _pack_planes(chunks: Callable[[], Iterator[np.ndarray]], count: int) -> bytes:
+    """The :func:`pack_uint64` stream of the ``count`` uint64 values ``chunks()`` yields (contiguous arrays, asked
+    for twice: their largest, then their bytes): the low bytes of every value, plane by plane, zstd-packed."""
+    top = max((int(c.max()) for c in chunks() if c.size), default=0)
+    nbytes = max(1, (top.bit_length() + 7) // 8)
+    planes = np.empty((nbytes, count), dtype=np.uint8)
+    pos = 0
+    for c in chunks():
+        planes[:, pos:pos + c.size] = c.view(np.uint8).reshape(-1, 8)[:, :nbytes].T
+        pos += c.size
+    body = zstandard.ZstdCompressor(level=19).compress(planes)  # its buffer as it is (no bytes copy)
+    return write_uvarint(count) + bytes([nbytes]) + body
 
 
 def safe_zstd_decompress(data: bytes, limit: int, what: str) -> bytes:
@@ -194,11 +218,34 @@ def _laplace_bits(a: np.ndarray, scale: np.ndarray) -> np.ndarray:
     return -np.log2(np.maximum(p, 2.0**-24)).sum(axis=0)
 
 
+def _block_scale(q: np.ndarray, steps: int = SCALE_STEPS, bias: int = 64) -> np.ndarray:
+    """Laplace scales ``(blocks, columns)`` of block codes ``q``: ``s = 2 ** ((q - bias) / steps)``."""
+    return 2.0 ** ((q.astype(np.float64) - bias) / steps)
+
+
 def _scale_values(q: np.ndarray, rows: int, steps: int = SCALE_STEPS, bias: int = 64) -> np.ndarray:
     """Per-symbol scale array ``(rows * cols,)`` from block codes ``q`` (``s = 2 ** ((q - bias) / steps)``)."""
-    s = 2.0 ** ((q.astype(np.float64) - bias) / steps)
-    full = np.repeat(s, BLOCK, axis=0)[:rows]
+    full = np.repeat(_block_scale(q, steps, bias), BLOCK, axis=0)[:rows]
     return np.ascontiguousarray(full, dtype=np.float64).ravel()
+
+
+def _encode_values(enc: Any, v: np.ndarray, scale: np.ndarray) -> bytes:
+    """Range code the values of ``v`` ``(rows, columns)`` (row by row, clipped to the model's range; the escape
+    mark where beyond) into ``enc`` under the Laplace scales ``scale`` ``(blocks, columns)`` of their blocks of
+    :data:`BLOCK` rows, :data:`CHUNK_VALUES` values per call (the coder takes one array per value and
+    parameter: made a chunk at a time they stay small; the stream is the one of a single call). Returns the
+    packed escaped values (b"" without any)."""
+    rows, cols = v.shape
+    model = constriction.stream.model.QuantizedLaplace(-LIMIT, LIMIT)
+    step = max(1, CHUNK_VALUES // max(cols, 1))
+    escapes = []
+    for a in range(0, rows, step):
+        part = v[a:a + step]
+        sym = np.clip(part, -LIMIT, LIMIT).astype(np.int32).ravel()
+        enc.encode(sym, model, np.zeros(sym.size), scale[np.arange(a, a + len(part)) // BLOCK].ravel())
+        escapes.append(part[np.abs(part) >= LIMIT])
+    esc = np.concatenate(escapes)
+    return pack_uint64(zigzag(esc)) if esc.size else b""
 
 
 # ---------------------------------------------------------------- public API
@@ -218,25 +265,20 @@ def encode_int_matrix(values: np.ndarray, coder: int | None = None) -> bytes:
     if coder is None:
         if not HAVE_CONSTRICTION:
             coder = CODER_ZSTD
-        else:
-            ranged = encode_int_matrix(v, CODER_RANGE_DELTA)
-            if v.size == 0 or np.count_nonzero(v) > SPARSE * v.size:
-                return ranged
+        elif v.size == 0 or np.count_nonzero(v) > SPARSE * v.size:
+            return encode_int_matrix(v, CODER_RANGE_DELTA)
+        else:  # the zstd trial first: its work space is let go before the range coder's arrays are made
             packed = encode_int_matrix(v, CODER_ZSTD)
+            ranged = encode_int_matrix(v, CODER_RANGE_DELTA)
             return packed if len(packed) < len(ranged) else ranged
     if coder == CODER_ZSTD or v.size == 0:
-        return bytes([CODER_ZSTD]) + head + pack_uint64(zigzag(v.T))
+        return bytes([CODER_ZSTD]) + head + pack_zigzag_columns(v)
     if coder == CODER_RANGE_DELTA:
         return _encode_delta(v, head)
     q = _block_scales(v)
-    sym = np.clip(v, -LIMIT, LIMIT)
-    esc_mask = np.abs(v) >= LIMIT
-    escapes = v[esc_mask]
-    model = constriction.stream.model.QuantizedLaplace(-LIMIT, LIMIT)
     enc = constriction.stream.queue.RangeEncoder()
-    enc.encode(sym.ravel().astype(np.int32), model, np.zeros(v.size), _scale_values(q, rows))
+    esc = _encode_values(enc, v, _block_scale(q))
     body = enc.get_compressed().tobytes()
-    esc = pack_uint64(zigzag(escapes)) if escapes.size else b""
     scales = pack_uint64(q.ravel())
     kind, scales = (CODER_RANGE_PACKED, write_uvarint(len(scales)) + scales) if len(scales) + 2 < q.size \
         else (CODER_RANGE, q.tobytes())
@@ -246,19 +288,14 @@ def encode_int_matrix(values: np.ndarray, coder: int | None = None) -> bytes:
 def _encode_delta(v: np.ndarray, head: bytes) -> bytes:
     """The CODER_RANGE_DELTA stream of ``v`` ``(rows, columns)``: the scale codes' differences (in block, then
     column order, from QUARTER_BIAS) and the values, in one range-coded body."""
-    rows, _ = v.shape
     q = _quarter_scales(v)
     diffs = np.diff(q.ravel(), prepend=QUARTER_BIAS)
     pick = int(np.argmin([_laplace_bits(np.abs(diffs)[:, None].astype(np.float64), np.array([d]))[0]
                           for d in DELTA_SCALES]))
-    sym = np.clip(v, -LIMIT, LIMIT)
-    escapes = v[np.abs(v) >= LIMIT]
     enc = constriction.stream.queue.RangeEncoder()
     enc.encode(diffs.astype(np.int32), _DELTA_MODEL, np.zeros(diffs.size), np.full(diffs.size, DELTA_SCALES[pick]))
-    enc.encode(sym.ravel().astype(np.int32), constriction.stream.model.QuantizedLaplace(-LIMIT, LIMIT),
-               np.zeros(v.size), _scale_values(q, rows, 4, QUARTER_BIAS))
+    esc = _encode_values(enc, v, _block_scale(q, 4, QUARTER_BIAS))
     body = enc.get_compressed().tobytes()
-    esc = pack_uint64(zigzag(escapes)) if escapes.size else b""
     return bytes([CODER_RANGE_DELTA]) + head + bytes([pick]) + write_uvarint(len(esc)) + esc \
         + write_uvarint(len(body)) + body
 

@@ -96,23 +96,41 @@ def positions_pair(original: AnyMotion, decoded: AnyMotion) -> tuple[np.ndarray,
     raise MocapzError("cannot compare skeletal data with marker data")
 
 
+CHUNK_FRAMES = 1024  # frames at a time of the figures' (frames, points, 3) temporaries (peak memory)
+
+
+def frame_chunks(frames: int, chunk: int = CHUNK_FRAMES) -> list[slice]:
+    """Consecutive slices of at most ``chunk`` frames covering ``frames`` frames."""
+    return [slice(s, min(s + chunk, frames)) for s in range(0, frames, chunk)]
+
+
 def distortion_pct(a: np.ndarray, b: np.ndarray, valid: np.ndarray | None = None) -> float:
-    """Karni-Gotsman ``100 ||A - B||_F / ||A - E(A)||_F`` with ``E(A)`` the per-point temporal mean."""
-    if valid is None:
-        valid = np.ones(a.shape[:2], dtype=bool)
-    w = valid[..., None]
-    a0 = np.where(w, a, 0.0)
-    b0 = np.where(w, b, 0.0)
-    counts = np.maximum(valid.sum(axis=0), 1)[:, None]
-    mean = a0.sum(axis=0) / counts
-    den = np.sqrt((np.where(w, a0 - mean, 0.0) ** 2).sum())
-    num = np.sqrt(((a0 - b0) ** 2).sum())
+    """Karni-Gotsman ``100 ||A - B||_F / ||A - E(A)||_F`` with ``E(A)`` the per-point temporal mean (positions
+    ``(frames, points, 3)``, ``valid`` ``(frames, points)`` present samples, default all). With every sample
+    present and C-ordered positions, each sum is over one array of squares made in place (one ``(frames,
+    points, 3)`` temporary in all; the same numbers as the copies made otherwise)."""
+    if (valid is None or valid.all()) and a.flags.c_contiguous and b.flags.c_contiguous:
+        dev = a - a.sum(axis=0) / max(a.shape[0], 1)
+        den = np.sqrt(np.square(dev, out=dev).sum())
+        num = np.sqrt(np.square(np.subtract(a, b, out=dev), out=dev).sum())
+    else:
+        valid = np.ones(a.shape[:2], dtype=bool) if valid is None else valid
+        w = valid[..., None]
+        a0 = np.where(w, a, 0.0)
+        b0 = np.where(w, b, 0.0)
+        mean = a0.sum(axis=0) / np.maximum(valid.sum(axis=0), 1)[:, None]
+        den = np.sqrt((np.where(w, a0 - mean, 0.0) ** 2).sum())
+        num = np.sqrt(((a0 - b0) ** 2).sum())
     return float(100.0 * num / den) if den > 0 else (0.0 if num == 0 else float("inf"))
 
 
 def point_errors(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Euclidean error per frame and point, ``(frames, points)``."""
-    return np.linalg.norm(a - b, axis=-1)
+    """Euclidean error per frame and point, ``(frames, points)``, of positions ``a`` and ``b`` ``(frames, points,
+    3)``; :data:`CHUNK_FRAMES` frames at a time (the same numbers, without a whole clip's difference)."""
+    out = np.empty(a.shape[:-1])
+    for part in frame_chunks(a.shape[0]):
+        out[part] = np.linalg.norm(a[part] - b[part], axis=-1)
+    return out
 
 
 def arms(err: np.ndarray, valid: np.ndarray) -> float:

@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -106,10 +107,41 @@ def safe_levels(lay: Layout, bound: np.ndarray, e_max: float, relax: float = REL
     return out
 
 
-def tolerances(t0: np.ndarray, lay: Layout, levels: np.ndarray) -> np.ndarray:
-    """``(frames, columns)`` tolerances from base tolerances ``t0`` ``(columns,)`` and levels
-    ``(frames, groups)``."""
-    return t0[None, :] * 2.0 ** (-levels[:, lay.group].astype(np.float64) / 2.0)
+@dataclass(frozen=True)
+class ColumnTolerances:
+    """The tolerances of a clip's samples held per column and group instead of as a dense ``(frames, columns)``
+    array: base tolerances ``t0`` ``(columns,)``, the ``group`` ``(columns,)`` of every column and the levels
+    ``(frames, groups)`` (a reference: what they are when columns are asked for). ``tol[:, cols]`` gives the
+    dense ``(frames, len(cols))`` tolerances of those columns (the same numbers as the dense array's columns),
+    so the closed loop makes a joint's at a time; ``np.asarray(tol)`` all of them."""
+
+    t0: np.ndarray
+    group: np.ndarray
+    levels: np.ndarray
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        return int(self.levels.shape[0]), int(self.t0.shape[0])
+
+    def columns(self, cols: np.ndarray | slice) -> np.ndarray:
+        """``(frames, len(cols))`` tolerances ``t0 * 2 ** (-level / 2)`` of the columns ``cols``."""
+        return self.t0[cols][None, :] * 2.0 ** (-self.levels[:, self.group[cols]].astype(np.float64) / 2.0)
+
+    def __getitem__(self, key: tuple[slice, np.ndarray | slice]) -> np.ndarray:
+        rows, cols = key
+        if rows != slice(None):
+            raise IndexError("ColumnTolerances gives whole columns only (tol[:, cols])")
+        return self.columns(cols)
+
+    def __array__(self, dtype: Any = None, copy: bool | None = None) -> np.ndarray:
+        out = self.columns(slice(None))
+        return out if dtype is None else out.astype(dtype)
+
+
+def tolerances(t0: np.ndarray, lay: Layout, levels: np.ndarray) -> ColumnTolerances:
+    """Tolerances ``(frames, columns)`` from base tolerances ``t0`` ``(columns,)`` and levels ``(frames,
+    groups)``, per column (:class:`ColumnTolerances`; ``np.asarray`` makes the dense array)."""
+    return ColumnTolerances(t0, lay.group, levels)
 
 
 def groups_moving(lay: Layout, points: np.ndarray) -> np.ndarray:

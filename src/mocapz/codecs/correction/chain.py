@@ -25,6 +25,7 @@ from types import ModuleType
 import numpy as np
 
 from mocapz.codecs.correction import lifting
+from mocapz.codecs.correction.bounds import ColumnTolerances
 from mocapz.codecs.correction.compiled import kernels
 from mocapz.model.kinematics import euler_angles, euler_rotations, local_translations
 from mocapz.model.motion import Motion
@@ -38,7 +39,9 @@ class Chain:
 
     Args:
         motion: the original clip.
-        global_rot: its global rotations ``(frames, joints, 3, 3)`` (from forward kinematics).
+        positions: its positions ``(frames, points, 3)`` (from forward kinematics).
+        global_rot: its global rotations ``(frames, joints, 3, 3)`` (from forward kinematics); only the feedback
+            joints' are kept (:attr:`goal_rot`), so the caller's array may be let go.
     """
 
     def __init__(self, motion: Motion, positions: np.ndarray, global_rot: np.ndarray) -> None:
@@ -46,7 +49,6 @@ class Chain:
         self.positions = positions
         self.skeleton = sk
         self.values = np.asarray(motion.channels, dtype=np.float64)
-        self.global_rot = global_rot
         self.scale = np.pi / 180.0 if sk.angle_unit == "deg" else 1.0
         self.period = 360.0 if sk.angle_unit == "deg" else 2 * np.pi
         moving = np.ptp(self.values, axis=0) > 0 if len(self.values) else np.zeros(sk.n_channels, dtype=bool)
@@ -60,6 +62,8 @@ class Chain:
         self.turned = [not np.array_equal(a, np.eye(3)) for a in sk.axis]  # type: ignore[union-attr]
         self.feedback = np.array([c is not None for c in self.rot_cols], dtype=bool)
         self.feedback[sk.parents < 0] = False  # a root has nothing decoded above it
+        # per feedback joint, its original global rotation ``(frames, 3, 3)`` (the goal under its decoded parent)
+        self.goal_rot = [np.ascontiguousarray(global_rot[:, j]) if fb else None for j, fb in enumerate(self.feedback)]
         kids: list[list[int]] = [[] for _ in range(sk.n_joints)]  # points (joints, end sites) hanging on j
         for c in range(sk.n_joints):
             if sk.parents[c] >= 0:
@@ -72,14 +76,14 @@ class Chain:
                        if len(order) == 3 and len(set(order.upper())) == 3 else None
                        for sl, chs, order in zip(self.slices, sk.channels, sk.rotation_order, strict=True)]
         # per joint, what every round of the loop asks for: the columns coded against their own original, the
-        # axes and axis frame, and (feedback joints) the original angles the goal's are taken nearest to
+        # axes and axis frame, its child joints and end sites
         self.plain = [np.arange(sl.start, sl.stop) if rot is None or not fb
                       else np.setdiff1d(np.arange(sl.start, sl.stop), rot)
                       for sl, rot, fb in zip(self.slices, self.rot_cols, self.feedback, strict=True)]
         self.axes = [_axes(order) for order in sk.rotation_order]
         self.axis_of = [self._axis(j) for j in range(sk.n_joints)]
-        self.near = [np.ascontiguousarray(self.values[:, rot]) if fb else None
-                     for rot, fb in zip(self.rot_cols, self.feedback, strict=True)]
+        self.children = [[c for c in range(sk.n_joints) if sk.parents[c] == j] for j in range(sk.n_joints)]
+        self.ends = [[e for e, site in enumerate(sk.end_sites) if site[0] == j] for j in range(sk.n_joints)]
         self.last: _Last | None = None  # what the last call of quantise kept (compiled kernels)
         self.work = motion.n_frames  # frames of the whole job (a block's clip): whether the kernels pay for loading
 
@@ -98,70 +102,91 @@ class Chain:
                 out[p] = max(out[p], bone[c] + (0.0 if self.feedback[c] else out[c]))
         return out
 
-    def quantise(self, x: np.ndarray, base: np.ndarray, tol: np.ndarray, levels: int,
+    def quantise(self, x: np.ndarray, base: np.ndarray, tol: np.ndarray | ColumnTolerances, levels: int,
                  shrink: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """:func:`~mocapz.codecs.correction.lifting.quantise` in closed loop: the residual of every feedback
         joint's rotation columns is taken against the decoded parent; ``x`` ``(frames, columns)`` is the plain
-        residual (original minus ``base``, wrapped) used for every other column. Returns the integers and the
+        residual (original minus ``base``, wrapped) used for every other column, and the feedback joints'
+        rotation columns of ``x`` are overwritten with the residuals against their goals (in place: no second
+        frames x columns array; those columns of the plain residual are never read). ``tol``: ``(frames,
+        columns)``, dense or per column (taken a joint's columns at a time). Returns the integers and the
         decoded residual, as :func:`~mocapz.codecs.correction.lifting.quantise`, and the decoded positions
         ``(frames, points, 3)`` (the forward kinematics of ``base`` plus the decoded residual, joints then end
-        sites: the loop has composed them already)."""
+        sites: the loop has composed them already). A joint's decoded global rotations are kept only while a
+        joint or end site below it needs them. With the compiled kernels the decoded residual is the loop's own
+        array, kept for the next call on the same ``x`` and ``base`` (which updates it in place): callers do
+        not change it, and let it go before that call (or :meth:`forget` first)."""
         sk = self.skeleton
         frames, cols = x.shape
         _, n = lifting.plan(frames, levels)
         q = np.zeros((n, cols), dtype=np.int64)
-        y = np.zeros_like(x)
         kern = kernels(max(frames, self.work))
         compiled = kern is not None
         last = self.last
-        if compiled and last is not None and last.x is x and last.base is base and last.key == (levels, shrink):
-            goal, g_dec, p_dec, y_old = last.goal, last.g_dec, last.p_dec, last.y  # only what changed is redone
-        else:
-            goal, g_dec, p_dec, y_old = x.copy(), np.empty((frames, sk.n_joints, 3, 3)), \
-                np.empty((frames, sk.n_joints, 3)), None
+        again = compiled and last is not None and last.x is x and last.base is base and last.key == (levels, shrink)
+        y = last.y if again and last is not None else np.zeros_like(x)  # again: only what moved is redone
+        self.last = last = None  # kept again when this call is through (never half updated)
+        pos = np.empty((frames, sk.n_points, 3))
+        p_dec = pos[:, : sk.n_joints]  # the joints' positions: a view of the points'
+        g: dict[int, np.ndarray] = {}  # decoded global rotations (frames, 3, 3) of the joints still needed
+        left = [len(c) for c in self.children]  # child joints not done yet, per joint
         moved_g: list[np.ndarray] = []  # per joint: the frames where its decoded global rotation may have moved
         moved_p: list[np.ndarray] = []  # and its decoded position
         for j in range(sk.n_joints):
             sl = self.slices[j]
             p = sk.parents[j]
+            gp = g[p] if p >= 0 else _NO_PARENT
             rot = self.rot_cols[j] if self.feedback[j] else None
             plain = self.plain[j]
+            changed = np.zeros((frames, sl.stop - sl.start), dtype=bool)  # the joint's decoded values that moved
             if plain.size:  # translations, and rotations coded against their own original
-                q[:, plain], y[:, plain] = lifting.quantise(goal[:, plain], tol[:, plain], levels, shrink, compiled)
+                _put(q, y, plain, *lifting.quantise(x[:, plain], tol[:, plain], levels, shrink, compiled), changed,
+                     sl.start, again)
             trans = self._translation(j, base[:, sl] + y[:, sl])
             if kern is not None:
-                kern.place(g_dec, p_dec, j, p, trans)
+                kern.place(gp, p_dec, j, p, trans)
             else:
-                p_dec[:, j] = trans if p < 0 else p_dec[:, p] + np.einsum("fab,fb->fa", g_dec[:, p], trans)
-            own = _changed(y, y_old, plain)
+                p_dec[:, j] = trans if p < 0 else p_dec[:, p] + np.einsum("fab,fb->fa", gp, trans)
+            own = _moved(changed, plain, sl.start, again)
             moved_p.append(own if p < 0 else own | moved_p[p] | moved_g[p])
             if rot is not None:
-                self._goal_residual(j, g_dec, p_dec, kern, base, goal, moved_p[j] | moved_g[p])
-                q[:, rot], y[:, rot] = lifting.quantise(goal[:, rot], tol[:, rot], levels, shrink, compiled)
-            cols = self.euler3[j]
-            if kern is not None and cols is not None:
-                own = _changed(y, y_old, cols)
-                moved_g.append(own if p < 0 else own | moved_g[p])
-                kern.compose(g_dec, j, p, np.ascontiguousarray(base[:, cols] + y[:, cols]), self.scale,
-                             self.axes[j], self.axis_of[j], self.turned[j], np.flatnonzero(moved_g[j]))
-                continue
-            before = g_dec[:, j].copy() if y_old is not None else None
-            g_dec[:, j] = self._local(j, base[:, sl] + y[:, sl])
+                self._goal_residual(j, gp, p_dec, kern, base, x, moved_p[j] | moved_g[p])
+                _put(q, y, rot, *lifting.quantise(x[:, rot], tol[:, rot], levels, shrink, compiled), changed,
+                     sl.start, again)
+            # the decoded global rotation, on every frame (a few products per frame), and where it may have moved
+            own = _moved(changed, np.arange(sl.start, sl.stop) if self.euler3[j] is None else self.euler3[j],
+                         sl.start, again)
+            moved_g.append(own if p < 0 else own | moved_g[p])
+            g[j] = self._global(j, gp, base[:, sl] + y[:, sl], kern)
+            for e in self.ends[j]:
+                pos[:, sk.n_joints + e] = p_dec[:, j] + g[j] @ np.asarray(sk.end_sites[e][1])
             if p >= 0:
-                g_dec[:, j] = g_dec[:, p] @ g_dec[:, j]
-            moved_g.append(np.ones(frames, bool) if before is None else np.any(g_dec[:, j] != before, axis=(1, 2)))
-        pos = np.empty((frames, sk.n_points, 3))
-        pos[:, : sk.n_joints] = p_dec
-        for e, (j, off, _) in enumerate(sk.end_sites):
-            pos[:, sk.n_joints + e] = p_dec[:, j] + g_dec[:, j] @ np.asarray(off)
-        self.last = _Last(x, base, (levels, shrink), goal, g_dec, p_dec, y.copy()) if compiled else None
+                left[p] -= 1
+                if not left[p]:
+                    del g[p]  # every joint below it is placed
+            if not left[j]:
+                del g[j]
+        self.last = _Last(x, base, (levels, shrink), y) if compiled else None
         return q, y, pos
 
     def forget(self) -> None:
         """Drop what :meth:`quantise` kept of its last call (the next call codes every frame anew)."""
         self.last = None
 
-    def _goal_residual(self, j: int, g_dec: np.ndarray, p_dec: np.ndarray, kern: ModuleType | None,
+    def _global(self, j: int, gp: np.ndarray, values: np.ndarray, kern: ModuleType | None) -> np.ndarray:
+        """Decoded global rotations ``(frames, 3, 3)`` of joint ``j`` from its parent's ``gp`` (a root: none) and
+        its decoded channel values ``(frames, its channels)``."""
+        cols = self.euler3[j]
+        p = self.skeleton.parents[j]
+        if kern is not None and cols is not None:
+            out = np.empty((values.shape[0], 3, 3))
+            kern.compose(out, gp, p, np.ascontiguousarray(values[:, cols - self.slices[j].start]), self.scale,
+                         self.axes[j], self.axis_of[j], self.turned[j], np.arange(values.shape[0]))
+            return out
+        local = self._local(j, values)
+        return gp @ local if p >= 0 else local
+
+    def _goal_residual(self, j: int, gp: np.ndarray, p_dec: np.ndarray, kern: ModuleType | None,
                        base: np.ndarray, goal: np.ndarray, moved: np.ndarray) -> None:
         """The residual of feedback joint ``j``'s rotation columns against its goal angles (:meth:`_goal_angles`),
         wrapped, into ``goal`` ``(frames, columns)``: with the compiled kernels on the frames ``moved`` only
@@ -169,36 +194,36 @@ class Chain:
         rot = self.rot_cols[j]
         half = self.period / 2
         if kern is None:
-            goal[:, rot] = np.mod(self._goal_angles(j, g_dec, p_dec, None) - base[:, rot] + half, self.period) - half
+            goal[:, rot] = np.mod(self._goal_angles(j, gp, p_dec, None) - base[:, rot] + half, self.period) - half
             return
         rows = np.flatnonzero(moved)
         if rows.size:
-            angles = self._goal_angles(j, g_dec, p_dec, kern, rows)
+            angles = self._goal_angles(j, gp, p_dec, kern, rows)
             at = np.ix_(rows, rot)
             goal[at] = np.mod(angles[rows] - base[at] + half, self.period) - half
 
-    def _goal_angles(self, j: int, g_dec: np.ndarray, p_dec: np.ndarray, kern: ModuleType | None,
+    def _goal_angles(self, j: int, gp: np.ndarray, p_dec: np.ndarray, kern: ModuleType | None,
                      rows: np.ndarray | None = None) -> np.ndarray:
         """Euler angles ``(frames, 3)`` (file unit, nearest the original's) of feedback joint ``j``'s local
         rotation that gives back its original global rotation under its decoded parent (global rotations
-        ``g_dec`` ``(frames, joints, 3, 3)``), the bone turned first to point from the decoded joint (positions
+        ``gp`` ``(frames, 3, 3)``), the bone turned first to point from the decoded joint (positions
         ``p_dec`` ``(frames, joints, 3)``) at the original child; the compiled kernel fills the frames ``rows``
         only (default: all)."""
         sk = self.skeleton
         p, aim, rot, order = sk.parents[j], int(self.aim[j]), self.rot_cols[j], sk.rotation_order[j]
         if kern is not None:
-            out = np.empty((g_dec.shape[0], 3))
+            out = np.empty((gp.shape[0], 3))
             i, k, m = ("XYZ".index(a) for a in order.upper())
-            kern.goal_angles(g_dec, p_dec, j, p, self.global_rot, self.positions, aim, COS_TURN,
+            kern.goal_angles(gp, p_dec, j, p, self.goal_rot[j], self.positions, aim, COS_TURN,
                              self.axis_of[j], self.turned[j], np.array([i, k, m], dtype=np.int64),
-                             1.0 if (k - i) % 3 == 1 else -1.0, self.scale, self.near[j], self.period, out,
+                             1.0 if (k - i) % 3 == 1 else -1.0, self.scale, self.values, rot, self.period, out,
                              np.arange(len(out)) if rows is None else rows)
             return out
-        goal = self.global_rot[:, j]
+        goal = self.goal_rot[j]
         if aim >= 0:  # turn the bone to point from the decoded joint at the original child
             goal = _turn(self.positions[:, aim] - self.positions[:, j], self.positions[:, aim] - p_dec[:, j],
                          MAX_TURN) @ goal
-        target = g_dec[:, p].swapaxes(1, 2) @ goal
+        target = gp.swapaxes(1, 2) @ goal
         if self.turned[j]:
             a = self._axis(j)
             target = a.T @ target @ a
@@ -254,29 +279,38 @@ class Chain:
 
 @dataclass
 class _Last:
-    """What :meth:`Chain.quantise` keeps of its last call with the compiled kernels: its arguments (``x``,
-    ``base``, ``(levels, shrink)``), the residuals coded (feedback joints' against their goal), the decoded
-    global rotations and positions, and the decoded residual. A call on the same ``x`` and ``base`` (the
-    rounds of one fit, which change the tolerances only) redoes the goals and rotations only on the frames
-    where a decoded value above them changed: each frame's are computed on their own, so the result is
-    the same to the bit."""
+    """What :meth:`Chain.quantise` keeps of its last call with the compiled kernels: its arguments (``x``, which
+    holds the residuals coded: feedback joints' against their goal, ``base``, ``(levels, shrink)``) and the
+    decoded residual (the array returned, not a copy: the next call updates it in place). A call on the same
+    ``x`` and ``base`` (the rounds of one fit, which change the tolerances only) redoes the goals only on the
+    frames where a decoded value above them may have changed: each frame's are computed on their own, so the
+    result is the same to the bit."""
 
     x: np.ndarray
     base: np.ndarray
     key: tuple[int, float]
-    goal: np.ndarray
-    g_dec: np.ndarray
-    p_dec: np.ndarray
     y: np.ndarray
 
 
-def _changed(y: np.ndarray, before: np.ndarray | None, cols: np.ndarray) -> np.ndarray:
-    """``(frames,)`` True where a column ``cols`` of ``y`` differs from ``before`` (every frame without it)."""
-    if before is None:
-        return np.ones(y.shape[0], dtype=bool)
-    if not cols.size:
-        return np.zeros(y.shape[0], dtype=bool)
-    return np.any(y[:, cols] != before[:, cols], axis=1)
+_NO_PARENT = np.empty((0, 3, 3))  # a root's parent rotations (never read)
+
+
+def _put(q: np.ndarray, y: np.ndarray, cols: np.ndarray, qc: np.ndarray, yc: np.ndarray, changed: np.ndarray,
+         start: int, again: bool) -> None:
+    """Write the integers ``qc`` and decoded residual ``yc`` ``(frames, len(cols))`` of columns ``cols`` into ``q``
+    and ``y``; on a call redoing the one before (``again``), mark first in ``changed`` ``(frames, the joint's
+    columns from ``start``)`` where a decoded value differs from the one it replaces."""
+    if again:
+        changed[:, cols - start] = yc != y[:, cols]
+    q[:, cols], y[:, cols] = qc, yc
+
+
+def _moved(changed: np.ndarray, cols: np.ndarray, start: int, again: bool) -> np.ndarray:
+    """``(frames,)`` True where a decoded value of columns ``cols`` moved (:func:`_put`); every frame on a call
+    that codes every frame anew."""
+    if not again:
+        return np.ones(changed.shape[0], dtype=bool)
+    return changed[:, cols - start].any(axis=1)
 
 
 def _axes(order: str) -> np.ndarray:

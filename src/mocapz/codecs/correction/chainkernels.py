@@ -8,8 +8,9 @@ parent and its Euler angles nearest the original's (:func:`goal_angles`), then t
 rotation (:func:`compose`). The results agree with the NumPy path to float rounding
 (tests/test_correction_jit.py).
 
-Shapes: ``g`` ``(frames, joints, 3, 3)`` decoded global rotations, ``p`` ``(frames, joints, 3)`` decoded
-positions (file units), angles in the file's angle unit (``scale`` converts them to radians).
+Shapes: ``gp``, ``gj`` ``(frames, 3, 3)`` the decoded global rotations of a joint's parent and of the joint (a
+root's ``gp`` is not read), ``p`` ``(frames, joints, 3)`` decoded positions (file units), angles in the file's
+angle unit (``scale`` converts them to radians).
 """
 
 # ruff: noqa: ANN001, ANN202
@@ -64,24 +65,25 @@ def _mul_t(a: np.ndarray, b: np.ndarray, out: np.ndarray) -> None:
 
 
 @jit
-def place(g, p, j: int, parent: int, trans) -> None:
+def place(gp, p, j: int, parent: int, trans) -> None:
     """Decoded position of joint ``j`` from its local translations ``trans`` ``(frames, 3)``."""
     for f in range(trans.shape[0]):
         for a in range(3):
             if parent < 0:
                 p[f, j, a] = trans[f, a]
             else:
-                p[f, j, a] = p[f, parent, a] + g[f, parent, a, 0] * trans[f, 0] \
-                    + g[f, parent, a, 1] * trans[f, 1] + g[f, parent, a, 2] * trans[f, 2]
+                p[f, j, a] = p[f, parent, a] + gp[f, a, 0] * trans[f, 0] \
+                    + gp[f, a, 1] * trans[f, 1] + gp[f, a, 2] * trans[f, 2]
 
 
 @jit
-def goal_angles(g, p, j: int, parent: int, global_rot, positions, aim: int, cos_most: float, axis,
-                turned: bool, ijk, sign: float, scale: float, near, period: float, out, rows) -> None:
-    """Euler angles ``out`` ``(frames, 3)`` (file unit, of the two solutions and every turn the nearest
-    ``near``) of the local rotation that, under the decoded parent, gives joint ``j``'s original global
-    rotation, its bone first turned (at most ``acos(cos_most)``) to point from the decoded joint at the
-    original child ``aim`` (-1: none); on the frames ``rows`` only (each frame on its own)."""
+def goal_angles(gp, p, j: int, parent: int, goal_rot, positions, aim: int, cos_most: float, axis,
+                turned: bool, ijk, sign: float, scale: float, values, near, period: float, out, rows) -> None:
+    """Euler angles ``out`` ``(frames, 3)`` (file unit, of the two solutions and every turn the nearest the
+    original's: ``values`` ``(frames, columns)`` at the columns ``near``) of the local rotation that, under the
+    decoded parent, gives joint ``j``'s original global rotation ``goal_rot`` ``(frames, 3, 3)``, its bone first
+    turned (at most ``acos(cos_most)``) to point from the decoded joint at the original child ``aim`` (-1: none);
+    on the frames ``rows`` only (each frame on its own)."""
     goal = np.empty((3, 3))
     turn = np.empty((3, 3))
     tmp = np.empty((3, 3))
@@ -93,7 +95,7 @@ def goal_angles(g, p, j: int, parent: int, global_rot, positions, aim: int, cos_
         f = rows[row]
         for a in range(3):
             for b in range(3):
-                goal[a, b] = global_rot[f, j, a, b]
+                goal[a, b] = goal_rot[f, a, b]
         if aim >= 0:
             a0, a1, a2 = (positions[f, aim, 0] - positions[f, j, 0], positions[f, aim, 1] - positions[f, j, 1],
                           positions[f, aim, 2] - positions[f, j, 2])
@@ -118,7 +120,7 @@ def goal_angles(g, p, j: int, parent: int, global_rot, positions, aim: int, cos_
                     mul33(turn, goal, tmp)
                     goal[:, :] = tmp
         if parent >= 0:
-            _mul_t(g[f, parent], goal, r)
+            _mul_t(gp[f], goal, r)
         else:
             r[:, :] = goal
         if turned:
@@ -134,7 +136,7 @@ def goal_angles(g, p, j: int, parent: int, global_rot, positions, aim: int, cos_
             last = math.atan2(-sign * r[i, jj], r[i, i])
         s0, s1, s2 = first / scale, mid / scale, last / scale
         t0, t1, t2 = s0 + half, half - s1, s2 + half
-        n0, n1, n2 = near[f, 0], near[f, 1], near[f, 2]
+        n0, n1, n2 = values[f, near[0]], values[f, near[1]], values[f, near[2]]
         s0 += period * np.rint((n0 - s0) / period)
         s1 += period * np.rint((n1 - s1) / period)
         s2 += period * np.rint((n2 - s2) / period)
@@ -147,10 +149,10 @@ def goal_angles(g, p, j: int, parent: int, global_rot, positions, aim: int, cos_
 
 
 @jit
-def compose(g, j: int, parent: int, values, scale: float, axes, axis, turned: bool, rows) -> None:
-    """Decoded global rotation of joint ``j`` into ``g``: the decoded parent's times the local rotation of the
-    decoded Euler ``values`` ``(frames, 3)`` (file unit) about ``axes``, in the joint's ``axis`` frame when
-    ``turned`` (ASF); on the frames ``rows`` only."""
+def compose(gj, gp, parent: int, values, scale: float, axes, axis, turned: bool, rows) -> None:
+    """Decoded global rotation of a joint into ``gj``: the decoded parent's ``gp`` (a root: none, ``parent``
+    < 0) times the local rotation of the decoded Euler ``values`` ``(frames, 3)`` (file unit) about ``axes``, in
+    the joint's ``axis`` frame when ``turned`` (ASF); on the frames ``rows`` only."""
     loc = np.empty((3, 3))
     tmp = np.empty((3, 3))
     ang = np.empty(3)
@@ -165,6 +167,6 @@ def compose(g, j: int, parent: int, values, scale: float, axes, axis, turned: bo
                 for b in range(3):
                     loc[a, b] = tmp[a, 0] * axis[b, 0] + tmp[a, 1] * axis[b, 1] + tmp[a, 2] * axis[b, 2]
         if parent >= 0:
-            mul33(g[f, parent], loc, g[f, j])
+            mul33(gp[f], loc, gj[f])
         else:
-            g[f, j, :, :] = loc
+            gj[f, :, :] = loc

@@ -19,6 +19,7 @@ import numpy as np
 
 from mocapz.codecs.target import ErrorMetric
 from mocapz.metrics.contacts import Contacts, find_contacts
+from mocapz.metrics.figures import frame_chunks
 from mocapz.model.motion import AnyMotion, BlockOf
 
 
@@ -56,11 +57,21 @@ def cached(ctx: BlockOf, key: str, make: Any) -> Any:
     return ctx.cache[key]
 
 
+def squared_accelerations(a: np.ndarray) -> np.ndarray:
+    """``(frames - 2, points)`` squared second differences ``|a[t+2] - a[t+1] - (a[t+1] - a[t])|^2`` of positions
+    ``a`` ``(frames, points, 3)`` (NaN as 0), :data:`~mocapz.metrics.figures.CHUNK_FRAMES` frames at a time (the
+    same numbers, without a whole clip's temporaries)."""
+    out = np.empty((max(a.shape[0] - 2, 0), a.shape[1]))
+    for part in frame_chunks(out.shape[0]):
+        out[part] = (np.diff(np.nan_to_num(a[part.start:part.stop + 2]), 2, axis=0) ** 2).sum(axis=2)
+    return out
+
+
 def acceleration_energy(a: np.ndarray, valid: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """``(frames - 2, points)`` squared second differences of positions ``a`` ``(frames, points, 3)`` and
-    where all three samples are present."""
+    """``(frames - 2, points)`` squared second differences of positions ``a`` ``(frames, points, 3)`` (0 where a
+    sample is missing) and where all three samples are present."""
     ok = valid[2:] & valid[1:-1] & valid[:-2]
-    return np.where(ok, (np.diff(np.nan_to_num(a), 2, axis=0) ** 2).sum(axis=2), 0.0), ok
+    return np.where(ok, squared_accelerations(a), 0.0), ok
 
 
 def energy_reference(ctx: BlockOf | None, own: float, fraction: float) -> float:

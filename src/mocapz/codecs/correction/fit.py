@@ -14,12 +14,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from mocapz._memory import release_free_memory
 from mocapz.codecs.correction import bounds, context, feet, lifting
 from mocapz.codecs.correction.chain import Chain
 from mocapz.codecs.correction.compiled import kernels
 from mocapz.codecs.target import ErrorMetric, Errors
 from mocapz.format.entropy import encode_int_matrix, pack_uint64
 from mocapz.metrics.contacts import find_contacts
+from mocapz.metrics.figures import point_errors
 from mocapz.model.kinematics import forward_kinematics
 from mocapz.model.motion import AnyMotion, Motion
 
@@ -94,7 +96,8 @@ class Clip:
         self.shrink = SHRINK
         self.chain = None
         if fk is not None:
-            self.chain = Chain(motion, self.positions, fk[1])
+            self.chain = Chain(motion, self.positions, fk[1])  # keeps the feedback joints' rotations only
+        del fk  # the other joints' global rotations are not kept (peak memory)
         self.whole = context.block_of(motion)  # the clip this is a block of: decide as on the whole clip
         # frames of the whole job (a block's clip, a stream's window): whether the compiled kernels pay for loading
         self.work = motion.n_frames if self.whole is None else max(motion.n_frames, self.whole.clip.n_frames)
@@ -165,8 +168,12 @@ class Clip:
         r = self.values - base
         if self.rot.any():
             half = self.period / 2
-            r[:, self.rot] = np.mod(r[:, self.rot] + half, self.period) - half
-        return np.nan_to_num(r, nan=0.0, posinf=0.0, neginf=0.0)
+            w = r[:, self.rot]
+            w += half
+            np.mod(w, self.period, out=w)
+            w -= half
+            r[:, self.rot] = w
+        return np.nan_to_num(r, copy=False, nan=0.0, posinf=0.0, neginf=0.0)
 
     def jitter(self, pos: np.ndarray) -> tuple[float, np.ndarray]:
         """Added acceleration energy of decoded positions ``(frames, points, 3)`` (sum over frames and points of
@@ -175,8 +182,7 @@ class Clip:
         out = np.zeros(pos.shape[:2], dtype=bool)
         if pos.shape[0] < 3:
             return 0.0, out
-        ea, ok = context.acceleration_energy(self.positions, self.valid)
-        eb = np.where(ok, (np.diff(np.nan_to_num(pos), 2, axis=0) ** 2).sum(axis=2), 0.0)
+        ea, eb = self._energies(pos)
         total = context.energy_reference(self.whole, float(ea.sum()), JITTER)
         if total <= 0:
             return 0.0, out
@@ -200,18 +206,24 @@ class Clip:
         clip around this block: nothing to account for)."""
         if self.whole is None or pos.shape[0] < 3:
             return 0.0
-        ea, ok = context.acceleration_energy(self.positions, self.valid)
-        eb = np.where(ok, (np.diff(np.nan_to_num(pos), 2, axis=0) ** 2).sum(axis=2), 0.0)
+        ea, eb = self._energies(pos)
         return float(eb.sum()) - float(ea.sum())
 
-    def quantise(self, x: np.ndarray, base: np.ndarray, tol: np.ndarray,
+    def _energies(self, pos: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``(frames - 2, points)`` squared accelerations of the original and of decoded positions ``pos``
+        ``(frames, points, 3)``, 0 where a sample of the original is missing."""
+        ea, ok = context.acceleration_energy(self.positions, self.valid)
+        return ea, np.where(ok, context.squared_accelerations(pos), 0.0)
+
+    def quantise(self, x: np.ndarray, base: np.ndarray, tol: np.ndarray | bounds.ColumnTolerances,
                  depth: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """The residual ``x`` of decoded ``base`` values quantised within ``tol`` (all ``(frames, columns)``):
-        in closed loop down the hierarchy for skeletons (:mod:`.chain`). Returns the integers, the decoded
-        residual and the decoded positions ``(frames, points, 3)``."""
+        """The residual ``x`` of decoded ``base`` values quantised within ``tol`` (all ``(frames, columns)``; the
+        tolerances dense or per column): in closed loop down the hierarchy for skeletons (:mod:`.chain`, which
+        writes the feedback joints' residuals into ``x``). Returns the integers, the decoded residual (not to be
+        changed: the closed loop keeps it for its next call) and the decoded positions ``(frames, points, 3)``."""
         if self.chain is not None:
             return self.chain.quantise(x, base, tol, depth, self.shrink)
-        q, y = lifting.quantise(x, tol, depth, self.shrink, kernels(self.work, "liftkernels") is not None)
+        q, y = lifting.quantise(x, np.asarray(tol), depth, self.shrink, kernels(self.work, "liftkernels") is not None)
         return q, y, self.positions_of(base + y)
 
     def positions_of(self, values: np.ndarray) -> np.ndarray:
@@ -262,16 +274,42 @@ def fit(clip: Clip, base: np.ndarray, e: float, relax_by: float = bounds.RELAX, 
     feet = clip.foot_groups()
     tighter = bounds.groups_moving(lay, clip.held()) & feet[None, :]
     levels = np.where(tighter, np.maximum(cap - relax + FOOT_START, 0), np.maximum(cap - relax, 0))
-    valid = clip.valid
-    smooth = e <= clip.smooth_up_to()
+    del tighter
+    (q, y, pos), jit = _rounds(clip, x, base, t0, levels, cap, bound, depth, feet, e <= clip.smooth_up_to())
+    if clip.chain is not None:
+        clip.chain.forget()  # what the rounds shared
+    frames = x.shape[0]
+    del x, y, cap  # what is left to do needs the positions' figures and the integers only
+    errors, added = clip.metric.of_positions(pos), clip.added_energy(pos)
+    del pos  # the integers are packed without it (the entropy coders' work space comes on top)
+    release_free_memory()  # the rounds' freed arrays, not beside zstd's work space (mmap-ed, level 19)
+    sections = {
+        "c.codes": pack_uint64(codes.astype(np.uint64)),
+        "c.levels": encode_int_matrix(np.diff(levels, axis=0, prepend=0)),
+        "c.res": lifting.pack(q, frames, depth),
+    }
+    size = sum(len(v) + 8 for v in sections.values())
+    return Correction(sections, size, errors, e, jit, added, depth)
+
+
+Coding = tuple[np.ndarray, np.ndarray, np.ndarray]  # integers, decoded residual, decoded positions
+
+
+def _rounds(clip: Clip, x: np.ndarray, base: np.ndarray, t0: np.ndarray, levels: np.ndarray, cap: np.ndarray,
+            bound: np.ndarray, depth: int, feet: np.ndarray, smooth: bool) -> tuple[Coding, float]:
+    """The verification rounds of :func:`fit` (``levels`` ``(frames, groups)`` raised in place, at most to
+    ``cap``, or beyond for the jitter and the feet), then :func:`_settle`: the coding and the added jitter. What
+    a round makes is let go before the next round codes (and all of it on return: peak memory)."""
+    lay, valid = clip.layout, clip.valid
     jit = 0.0
     last = None  # the coding of the current levels
     slid = math.inf  # the feet's added speed the round before
     for _ in range(MAX_ROUNDS):
         q, y, pos = last = clip.quantise(x, base, bounds.tolerances(t0, lay, levels), depth)
         with np.errstate(invalid="ignore"):
-            err = np.linalg.norm(pos - clip.positions, axis=2)
+            err = point_errors(pos, clip.positions)
         misses = valid & ~(err <= bound * VERIFY)
+        del err
         # what to tighten this round, each (samples, levels cap, step, groups allowed): the points over their
         # bound, or once every bound holds the added acceleration energy; and the planted feet's added speed
         # in the same round (it is mostly the joints above the feet: tightening them with the rest halves the
@@ -297,21 +335,8 @@ def fit(clip: Clip, base: np.ndarray, e: float, relax_by: float = bounds.RELAX, 
             break
         # this round's coding is done with: the next one is made without it beside (peak memory)
         last = None
-        del q, y, pos, err, misses, todo, samples
-    q, y, pos = _settle(clip, x, base, t0, levels, cap, bound, depth, last)
-    if clip.chain is not None:
-        clip.chain.forget()  # what the rounds shared
-    frames = x.shape[0]
-    del last, x, y  # what is left to do needs the positions' figures and the integers only
-    errors, added = clip.metric.of_positions(pos), clip.added_energy(pos)
-    del pos  # the integers are packed without it (the entropy coders' work space comes on top)
-    sections = {
-        "c.codes": pack_uint64(codes.astype(np.uint64)),
-        "c.levels": encode_int_matrix(np.diff(levels, axis=0, prepend=0)),
-        "c.res": lifting.pack(q, frames, depth),
-    }
-    size = sum(len(v) + 8 for v in sections.values())
-    return Correction(sections, size, errors, e, jit, added, depth)
+        del q, y, pos, misses, todo, samples
+    return _settle(clip, x, base, t0, levels, cap, bound, depth, last), jit
 
 
 def _widen(samples: np.ndarray) -> np.ndarray:
@@ -337,7 +362,7 @@ def _settle(clip: Clip, x: np.ndarray, base: np.ndarray, t0: np.ndarray, levels:
         q, y, pos = last if last is not None else clip.quantise(x, base, bounds.tolerances(t0, lay, levels), depth)
         last = None
         with np.errstate(invalid="ignore"):
-            misses = clip.valid & ~(np.linalg.norm(pos - clip.positions, axis=2) <= bound * VERIFY)
+            misses = clip.valid & ~(point_errors(pos, clip.positions) <= bound * VERIFY)
         if not misses.any():
             break
         up = bounds.groups_moving(lay, misses) & (levels < cap)

@@ -1,0 +1,150 @@
+"""The encoder's lean structures and chunked figures (issue 12: peak memory) give, to the bit, what the dense
+whole-clip computations they replace gave, on real clips: the per-column tolerances, the closed loop fed
+with them, the figures computed a thousand frames at a time, the range coder fed a chunk at a time and the
+zstd byte planes made a few columns at a time. Each reference below is the code that was replaced."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from conftest import data_path
+
+import mocapz
+from mocapz.codecs.correction import bounds, context
+from mocapz.codecs.correction.fit import Clip
+from mocapz.format import entropy
+from mocapz.metrics import figures
+from mocapz.model.motion import MarkerMotion, Motion
+
+
+@pytest.fixture(scope="module")
+def walk() -> Motion:
+    m = mocapz.load(data_path("cmu/bvh/06_13.bvh"))  # 4,906 frames: several chunks of every kind
+    assert isinstance(m, Motion)
+    return m
+
+
+@pytest.fixture(scope="module")
+def markers() -> MarkerMotion:
+    m = mocapz.load(data_path("cmu/c3d/01_01.c3d"))  # gaps (NaN) in 2.4 % of the samples
+    assert isinstance(m, MarkerMotion) and m.missing.any()
+    return m
+
+
+def _dense_tolerances(t0: np.ndarray, lay: bounds.Layout, levels: np.ndarray) -> np.ndarray:
+    return t0[None, :] * 2.0 ** (-levels[:, lay.group].astype(np.float64) / 2.0)
+
+
+def _levels(clip: Clip, seed: int) -> tuple[np.ndarray, np.ndarray]:
+    """Base tolerances at 1 cm and levels as a fit leaves them: the safe levels, relaxed, some tightened."""
+    lay, rng = clip.layout, np.random.default_rng(seed)
+    e = 1.0 / clip.motion.unit_cm if clip.motion.unit_cm else clip.body / 170.0
+    t0 = bounds.tol_of(bounds.code_for(np.where(lay.moving, 16 * lay.t_safe * e, bounds.TINY * lay.t_safe * e)))
+    levels = np.maximum(bounds.safe_levels(lay, clip.point_bounds(e), e, 16.0) - 8, 0)
+    levels += rng.integers(0, 2, size=levels.shape) * (rng.random(levels.shape) < 0.05)
+    return t0, levels
+
+
+def test_column_tolerances_are_the_dense_array(walk: Motion, markers: MarkerMotion) -> None:
+    for motion in (walk, markers):
+        clip = Clip(motion, True)
+        t0, levels = _levels(clip, 1)
+        dense = _dense_tolerances(t0, clip.layout, levels)
+        tol = bounds.tolerances(t0, clip.layout, levels)
+        assert tol.shape == dense.shape
+        assert np.array_equal(np.asarray(tol), dense)
+        for cols in np.array_split(np.arange(dense.shape[1]), 17):  # a joint's or marker's columns at a time
+            assert np.array_equal(tol[:, cols], dense[:, cols])
+        levels[::7] += 1  # a reference: the levels as they are when the columns are asked for
+        assert np.array_equal(np.asarray(tol), _dense_tolerances(t0, clip.layout, levels))
+
+
+def test_closed_loop_per_column_gives_the_dense_coding(walk: Motion) -> None:
+    """The loop fed per-column tolerances codes what it codes with the dense array, its feedback goals written
+    into the residual's own columns (the others left as they were)."""
+    clip = Clip(walk.slice(0, 1500), True)
+    assert clip.chain is not None
+    t0, levels = _levels(clip, 2)
+    base = np.zeros_like(clip.values)
+    plain = clip.residual(base)
+    coded = []
+    for tol in (_dense_tolerances(t0, clip.layout, levels), bounds.tolerances(t0, clip.layout, levels)):
+        clip.chain.forget()
+        x = clip.residual(base)
+        coded.append([a.copy() for a in clip.chain.quantise(x, base, tol, 4, 0.85)] + [x])
+    for a, b in zip(coded[0], coded[1], strict=True):
+        assert np.array_equal(a, b)
+    fb = np.concatenate([c for c, f in zip(clip.chain.rot_cols, clip.chain.feedback, strict=True) if f])
+    others = np.setdiff1d(np.arange(plain.shape[1]), fb)
+    assert np.array_equal(coded[1][3][:, others], plain[:, others])
+    assert not np.array_equal(coded[1][3][:, fb], plain[:, fb])
+
+
+def _decoded(motion: Motion | MarkerMotion) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+    """Original and decoded (quant at 1 cm) positions and the present samples (None: all)."""
+    a, b, valid = figures.positions_pair(motion, mocapz.decompress(mocapz.compress(motion, "quant")))
+    return a, b, (None if valid.all() else valid)
+
+
+def _distortion_before(a: np.ndarray, b: np.ndarray, valid: np.ndarray | None = None) -> float:
+    if valid is None:
+        valid = np.ones(a.shape[:2], dtype=bool)
+    w = valid[..., None]
+    a0 = np.where(w, a, 0.0)
+    b0 = np.where(w, b, 0.0)
+    counts = np.maximum(valid.sum(axis=0), 1)[:, None]
+    mean = a0.sum(axis=0) / counts
+    den = np.sqrt((np.where(w, a0 - mean, 0.0) ** 2).sum())
+    num = np.sqrt(((a0 - b0) ** 2).sum())
+    return float(100.0 * num / den) if den > 0 else (0.0 if num == 0 else float("inf"))
+
+
+def test_chunked_figures_are_the_whole_clip_figures(walk: Motion, markers: MarkerMotion) -> None:
+    for motion in (walk.slice(0, 2600), markers):
+        a, b, valid = _decoded(motion)
+        assert a.shape[0] > figures.CHUNK_FRAMES
+        with np.errstate(invalid="ignore"):
+            assert np.array_equal(figures.point_errors(a, b), np.linalg.norm(a - b, axis=-1), equal_nan=True)
+            assert np.array_equal(figures.point_errors(b, a), np.linalg.norm(b - a, axis=-1), equal_nan=True)
+        assert figures.distortion_pct(a, b, valid) == _distortion_before(a, b, valid)
+        if valid is not None:  # markers: also as if every sample were present (NaN-free copies)
+            a1, b1 = np.nan_to_num(a), np.nan_to_num(b)
+            assert figures.distortion_pct(a1, b1) == _distortion_before(a1, b1)
+            assert figures.distortion_pct(a1, b1, np.ones(a.shape[:2], bool)) == _distortion_before(a1, b1)
+            for f1, g1 in ((np.asfortranarray(a1), b1), (a1, np.asfortranarray(b1))):  # not C-ordered: copies
+                assert figures.distortion_pct(f1, g1) == _distortion_before(f1, g1)
+        for p in (a, b):
+            before = (np.diff(np.nan_to_num(p), 2, axis=0) ** 2).sum(axis=2)
+            assert np.array_equal(context.squared_accelerations(p), before)
+
+
+@pytest.fixture(scope="module")
+def integers(walk: Motion) -> np.ndarray:
+    """The integers of a real correction (the closed loop on a zero base at 1 cm, the whole clip)."""
+    clip = Clip(walk, True)
+    t0, levels = _levels(clip, 3)
+    base = np.zeros_like(clip.values)
+    return clip.quantise(clip.residual(base), base, bounds.tolerances(t0, clip.layout, levels), 5)[0]
+
+
+def test_range_coder_in_chunks_writes_the_one_call_stream(integers: np.ndarray,
+                                                           monkeypatch: pytest.MonkeyPatch) -> None:
+    q = integers
+    assert q.size > 4 * entropy.CHUNK_VALUES
+    parts = [q, q[1:], q[::3], q[:, :5], np.clip(q * 40000, -2**40, 2**40)]  # the last one with escapes
+    chunked = [[entropy.encode_int_matrix(p, c) for c in (None, entropy.CODER_RANGE, entropy.CODER_RANGE_DELTA)]
+               for p in parts]
+    monkeypatch.setattr(entropy, "CHUNK_VALUES", 1 << 40)  # one call of the coder for all the values
+    whole = [[entropy.encode_int_matrix(p, c) for c in (None, entropy.CODER_RANGE, entropy.CODER_RANGE_DELTA)]
+             for p in parts]
+    assert chunked == whole
+    for p, streams in zip(parts, chunked, strict=True):
+        assert all(np.array_equal(entropy.decode_int_matrix(s), p) for s in streams)
+
+
+def test_byte_planes_by_columns_are_the_whole_matrix_planes(integers: np.ndarray) -> None:
+    q = integers
+    for p in (q, q[:, :1], q[:0], q * 300, q.T):
+        assert entropy.pack_zigzag_columns(p) == entropy.pack_uint64(entropy.zigzag(p.T))
+        v = np.asarray(p, dtype=np.int64)
+        assert np.array_equal(entropy.zigzag(v), ((v << 1) ^ (v >> 63)).astype(np.uint64))
