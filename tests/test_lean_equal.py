@@ -148,3 +148,17 @@ def test_byte_planes_by_columns_are_the_whole_matrix_planes(integers: np.ndarray
         assert entropy.pack_zigzag_columns(p) == entropy.pack_uint64(entropy.zigzag(p.T))
         v = np.asarray(p, dtype=np.int64)
         assert np.array_equal(entropy.zigzag(v), ((v << 1) ^ (v >> 63)).astype(np.uint64))
+
+
+@pytest.mark.parametrize("rel", ["cmu/bvh/06_13.bvh", "cmu/asfamc/01_01.amc", "other/bvh/games105/idle.bvh",
+                                 "other/bvh/bandai_namco/dataset-1_punch_normal_001.bvh"])
+def test_positions_in_chunks_are_the_whole_clip_positions(rel: str) -> None:
+    """forward_positions (a chunk of frames at a time, uneven last chunk) gives forward_kinematics' positions to
+    the bit: BVH, ASF joint axes, other exporters' skeletons."""
+    from mocapz.model.kinematics import forward_kinematics, forward_positions
+
+    m = mocapz.load(data_path(rel))
+    assert isinstance(m, Motion) and m.n_frames > 150
+    whole = forward_kinematics(m.skeleton, m.channels)[0]
+    for chunk in (37, 97, m.n_frames):
+        assert np.array_equal(forward_positions(m.skeleton, m.channels, chunk), whole)

@@ -22,7 +22,7 @@ import numpy as np
 
 from mocapz.codecs.options import Length, Option
 from mocapz.metrics.figures import arms, distortion_pct, point_errors
-from mocapz.model.kinematics import forward_kinematics
+from mocapz.model.kinematics import forward_positions
 from mocapz.model.motion import AnyMotion, MarkerMotion, Motion
 
 #: what a lossy codec meets when no target is given (codecs/correction)
@@ -123,7 +123,7 @@ class ErrorMetric:
     def __init__(self, original: AnyMotion, positions: np.ndarray | None = None) -> None:
         self.original = original
         if isinstance(original, Motion):
-            self.positions = forward_kinematics(original.skeleton, original.channels)[0] if positions is None \
+            self.positions = forward_positions(original.skeleton, original.channels) if positions is None \
                 else positions
             self.valid: np.ndarray | None = None
         else:
@@ -153,4 +153,4 @@ class ErrorMetric:
         if isinstance(decoded, MarkerMotion):
             return self.of_positions(decoded.positions)
         assert isinstance(self.original, Motion)
-        return self.of_positions(forward_kinematics(self.original.skeleton, decoded.channels)[0])
+        return self.of_positions(forward_positions(self.original.skeleton, decoded.channels))

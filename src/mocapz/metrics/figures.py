@@ -64,16 +64,16 @@ class ErrorReport:
 def positions_pair(original: AnyMotion, decoded: AnyMotion) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Original and decoded positions ``(frames, points, 3)`` and a validity mask ``(frames, points)``."""
     if isinstance(original, Motion) and isinstance(decoded, Motion):
-        from mocapz.model.kinematics import forward_kinematics
+        from mocapz.model.kinematics import forward_positions
 
         if decoded.n_frames != original.n_frames:
             raise MocapzError(
                 f"decoded motion has shape ({decoded.n_frames} frames), original {original.n_frames} frames"
             )
-        a = forward_kinematics(original.skeleton, original.channels)[0]
+        a = forward_positions(original.skeleton, original.channels)
         if decoded.skeleton.channel_labels() == original.skeleton.channel_labels():
             # METRICS.md: the decoded channels through the ORIGINAL skeleton
-            b = forward_kinematics(original.skeleton, decoded.channels)[0]
+            b = forward_positions(original.skeleton, decoded.channels)
         else:
             # another layout of the same skeleton (e.g. an .amc written from a .bvh): match points by name
             names = decoded.skeleton.point_names
@@ -83,7 +83,7 @@ def positions_pair(original: AnyMotion, decoded: AnyMotion) -> tuple[np.ndarray,
                 raise MocapzError(
                     "decoded motion has a different skeleton (missing points: " + ", ".join(missing[:5]) + ")"
                 )
-            full = forward_kinematics(decoded.skeleton, decoded.channels)[0]
+            full = forward_positions(decoded.skeleton, decoded.channels)
             b = full[:, [names.index(n) for n in original.skeleton.point_names]]
         return a, b, np.ones(a.shape[:2], dtype=bool)
     if isinstance(original, MarkerMotion) and isinstance(decoded, MarkerMotion):

@@ -6,6 +6,8 @@ import numpy as np
 
 from mocapz.model.skeleton import Skeleton
 
+POSITION_CHUNK = 1024  # frames whose rotations :func:`forward_positions` holds at once
+
 
 def axis_rotations(angle: np.ndarray, axis: int) -> np.ndarray:
     """Rotation matrices ``(..., 3, 3)`` about coordinate axis ``axis`` (0 x, 1 y, 2 z) by ``angle`` ``(...)``
@@ -103,6 +105,21 @@ def forward_kinematics(skeleton: Skeleton, channels: np.ndarray) -> tuple[np.nda
     rot = local_rotations(skeleton, channels)
     trans = local_translations(skeleton, channels)
     return chain(skeleton, rot, trans)
+
+
+def forward_positions(skeleton: Skeleton, channels: np.ndarray, chunk: int = POSITION_CHUNK) -> np.ndarray:
+    """The positions of :func:`forward_kinematics` alone, ``(frames, joints + end_sites, 3)`` in file units,
+    made ``chunk`` frames at a time (every frame is its own product chain, so the values are the same to the
+    bit): the rotations of a few frames live at once, not ``(frames, joints, 3, 3)`` of every kind (peak
+    memory)."""
+    channels = np.asarray(channels, dtype=np.float64)
+    frames = channels.shape[0]
+    if frames <= chunk:
+        return forward_kinematics(skeleton, channels)[0]
+    out = np.empty((frames, skeleton.n_points, 3))
+    for a in range(0, frames, chunk):
+        out[a:a + chunk] = forward_kinematics(skeleton, channels[a:a + chunk])[0]
+    return out
 
 
 def chain(skeleton: Skeleton, rot: np.ndarray, trans: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

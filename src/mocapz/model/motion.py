@@ -62,9 +62,9 @@ class Motion:
 
     def positions(self) -> np.ndarray:
         """Global positions of all joints and end sites, ``(frames, points, 3)``, file units."""
-        from mocapz.model.kinematics import forward_kinematics
+        from mocapz.model.kinematics import forward_positions
 
-        return forward_kinematics(self.skeleton, self.channels)[0]
+        return forward_positions(self.skeleton, self.channels)
 
     def with_channels(self, channels: np.ndarray, decimals: np.ndarray | None = None) -> Motion:
         """Same clip and skeleton with other channel values (e.g. decoded ones)."""

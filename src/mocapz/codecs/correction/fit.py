@@ -22,7 +22,7 @@ from mocapz.codecs.target import ErrorMetric, Errors
 from mocapz.format.entropy import encode_int_matrix, pack_uint64
 from mocapz.metrics.contacts import find_contacts
 from mocapz.metrics.figures import point_errors
-from mocapz.model.kinematics import forward_kinematics
+from mocapz.model.kinematics import forward_kinematics, forward_positions
 from mocapz.model.motion import AnyMotion, Motion
 
 SKATE_CM_S = 0.3  # foot speed a planted foot may gain, frame to frame and over 0.1 s (cm/s; issue 11 allows 0.5)
@@ -229,7 +229,7 @@ class Clip:
     def positions_of(self, values: np.ndarray) -> np.ndarray:
         """Positions ``(frames, points, 3)`` of decoded values ``(frames, columns)``."""
         if isinstance(self.motion, Motion):
-            return forward_kinematics(self.motion.skeleton, values)[0]
+            return forward_positions(self.motion.skeleton, values)
         return values.reshape(self.positions.shape)
 
     def precision_floor(self) -> float:

@@ -17,7 +17,7 @@ from mocapz.codecs.pga.outliers import detect_outliers, encode_outliers, kept_fr
 from mocapz.codecs.pga.packing import pack_matrices
 from mocapz.codecs.pga.params import PGASettings
 from mocapz.codecs.pga.quantise import model_matrices, quantise_model
-from mocapz.model.kinematics import forward_kinematics
+from mocapz.model.kinematics import forward_positions
 from mocapz.model.motion import Motion
 
 
@@ -49,7 +49,7 @@ def prepare(motion: Motion, effectors: list[int] | None = None, outliers: list[i
     ch = motion.channels[kept]
     clip = analyse(sk, ch)
     eff = effector_points(sk, effectors)
-    pos = forward_kinematics(sk, ch)[0]
+    pos = forward_positions(sk, ch)
     inner = inner_joints(sk)
     model = fit_pga(clip.local_rot[:, inner], inner) if len(kept) else None
     local = targets_in_root_frame(pos[:, eff], clip.root_pos, clip.root_rot)

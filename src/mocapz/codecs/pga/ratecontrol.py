@@ -22,7 +22,7 @@ from mocapz.codecs.pga.options import DEFAULT_VARIANCE, fixed_settings
 from mocapz.codecs.pga.params import PGASettings
 from mocapz.codecs.target import ErrorMetric, Errors, Target
 from mocapz.errors import OptionError, TargetError
-from mocapz.model.kinematics import forward_kinematics
+from mocapz.model.kinematics import forward_positions
 from mocapz.model.motion import Motion
 
 
@@ -74,7 +74,7 @@ def evaluate_settings(p: Prepared, s: PGASettings, rows: np.ndarray | None = Non
     else:
         ch = decode_rows(sk, s_dec, sections, len(p.kept), rows)
         a = _reference(p, rows)
-    return sections, size, ErrorMetric.between(a, forward_kinematics(sk, ch)[0])
+    return sections, size, ErrorMetric.between(a, forward_positions(sk, ch))
 
 
 def _reference(p: Prepared, rows: np.ndarray | None) -> np.ndarray:
@@ -83,7 +83,7 @@ def _reference(p: Prepared, rows: np.ndarray | None) -> np.ndarray:
     key = -1 if rows is None else int(rows.size)
     if key not in cache:
         ch = p.motion.channels if rows is None else p.motion.channels[p.kept[rows]]
-        cache[key] = forward_kinematics(p.motion.skeleton, ch)[0]
+        cache[key] = forward_positions(p.motion.skeleton, ch)
     return cache[key]
 
 
