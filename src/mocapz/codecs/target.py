@@ -30,7 +30,9 @@ DEFAULT_TARGET = "max error 1 cm on every joint, end site and marker of every fr
                  "(1/170 of the body height when the length unit is unknown)"
 DEFAULT_TARGET_TEXT = f"none given: the default target, {DEFAULT_TARGET}"
 
-#: the target options, declared once and listed by every lossy codec (then ``hold_feet``)
+EFFORTS = ("fast", "default", "best")  # the correction's search effort (option ``effort``)
+
+#: the target options, declared once and listed by every lossy codec (then ``hold_feet`` and ``effort``)
 TARGET_OPTIONS: tuple[Option, ...] = (
     Option("max_error", "length", "target: largest position error of any joint, end site or marker in any frame",
            low=0.0, low_open=True, default_text=DEFAULT_TARGET_TEXT),
@@ -41,8 +43,13 @@ TARGET_OPTIONS: tuple[Option, ...] = (
     Option("hold_feet", "bool", "keep planted feet still: on the original's foot contacts (METRICS.md) the speed "
            "the decoded feet add is verified (at most 0.3 cm/s, frame to frame and over 0.1 s) and the joints above "
            "them tightened until it holds", default=True),
+    Option("effort", "choice", "how hard the correction searches for the smallest file meeting the target: fast (the "
+           "lifting depth of the frame rate, coded once), default (three depths, a long clip's chosen on two 6-s "
+           "windows), best (three depths, each coded on the whole clip); every one meets the target",
+           default="default", choices=EFFORTS),
 )
 TARGET_NAMES = ("max_error", "max_distortion", "max_arms")
+CORRECTION_NAMES = ("hold_feet", "effort")  # the correction layer's own options (not the model's settings)
 
 
 @dataclass(frozen=True)

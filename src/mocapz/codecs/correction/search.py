@@ -34,15 +34,24 @@ def search(clip: Clip, base: np.ndarray, target: Target, depth: int | None = Non
 
 
 def search_bases(clip: Clip, bases: list[np.ndarray], extra: list[int], target: Target,
-                 depth: int | None = None) -> tuple[int, Correction]:
+                 depth: int | None = None, effort: str = "default") -> tuple[int, Correction]:
     """The base (``(frames, columns)`` values the correction is added to, each costing ``extra`` bytes of its
     own) and the correction coding the clip smallest, ``(index, correction)``; the first base's settings are
     searched as :func:`search` does, the others' at the lifting depth it chose. On a short clip every base is
     searched whole; on a long one the bases are compared on the two windows (their corrections' bytes scaled
     to the clip, plus their own) and only the best is coded whole, verified, and searched on its own if it
     misses (then the other bases are searched whole as well). The smallest is returned, met or not: the
-    caller says what missed."""
-    parts = _windows(clip)
+    caller says what missed.
+
+    ``effort`` (the codec option): ``"fast"`` tries the clip's own lifting depth only (then the windows of a
+    long clip only choose between bases, or start a distortion or ARMS target's search: one base and a max
+    error target are coded once, whole); ``"best"`` codes every setting on the whole clip, whatever its
+    length."""
+    if effort == "fast" and depth is None:
+        depth = clip.levels
+    one_fit = len(bases) == 1 and depth is not None and len(RELAXES) == 1 \
+        and target.max_distortion is None and target.max_arms is None
+    parts = [(clip, slice(None))] if effort == "best" or one_fit else _windows(clip)
     if parts[0][0] is clip:
         found: list[Correction] = []
         for base in bases:

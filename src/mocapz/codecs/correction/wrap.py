@@ -28,7 +28,7 @@ from mocapz.codecs.correction.fit import Clip, value_matrix
 from mocapz.codecs.correction.search import search_bases
 from mocapz.codecs.gaps import pack_mask, unpack_mask
 from mocapz.codecs.options import Length, Option
-from mocapz.codecs.target import TARGET_NAMES, Target
+from mocapz.codecs.target import CORRECTION_NAMES, TARGET_NAMES, Target
 from mocapz.errors import FormatError, TargetError
 from mocapz.format.entropy import decode_int_matrix, read_uvarint, unpack_uint64, write_uvarint
 from mocapz.model.header import ClipHeader
@@ -63,7 +63,7 @@ def default_error(motion: AnyMotion) -> float:
 def strip_targets(motion: AnyMotion, options: dict[str, Any], target: Target) -> dict[str, Any]:
     """The options without the targets: the model with its own settings (for models whose rate control cannot
     aim at a max error, or is slow)."""
-    return {k: v for k, v in options.items() if k not in TARGET_NAMES and k != "hold_feet"}
+    return {k: v for k, v in options.items() if k not in TARGET_NAMES and k not in CORRECTION_NAMES}
 
 
 def native_targets(motion: AnyMotion, options: dict[str, Any], target: Target) -> dict[str, Any]:
@@ -79,7 +79,7 @@ def native_targets(motion: AnyMotion, options: dict[str, Any], target: Target) -
 
 def given_settings(options: dict[str, Any], declared: tuple[Option, ...]) -> bool:
     """True when the user fixed a model setting (an option other than the targets, unlike its default)."""
-    return any(o.name not in TARGET_NAMES and o.name != "hold_feet" and options.get(o.name) is not None
+    return any(o.name not in TARGET_NAMES and o.name not in CORRECTION_NAMES and options.get(o.name) is not None
                and options.get(o.name) != o.default for o in declared)
 
 
@@ -121,7 +121,8 @@ def corrected(encode: Encoder, decode: Decoder, codec: str, declared: tuple[Opti
                 and motion.missing.any() else {}
             # zeros as a read-only view of one value: no frames x columns array kept for the zero base
             tried.append((BASE_NONE, zero, np.broadcast_to(np.zeros((), dtype=clip.values.dtype), clip.values.shape)))
-        best, cor = search_bases(clip, [t[2] for t in tried], [_size(t[1]) for t in tried], target)
+        best, cor = search_bases(clip, [t[2] for t in tried], [_size(t[1]) for t in tried], target,
+                                 effort=options.get("effort") or "default")
         kind, base_sections, _ = tried[best]
         if not target.met(cor.errors):
             raise TargetError(f"{motion.metadata.get('path', motion.name)}: the {codec} codec with its correction "

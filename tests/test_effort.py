@@ -1,0 +1,82 @@
+"""The ``effort`` option (issue 12: encode speed with a target): ``fast`` codes a long clip once at the frame
+rate's lifting depth, ``best`` codes every setting on the whole clip, and every effort meets the target with
+the feet held, on real clips."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+from conftest import data_path
+from test_cli import RUN, assert_one_line_error, mocapz_cli
+from test_targets import added_skate
+
+import mocapz
+from mocapz.codecs.correction import search
+from mocapz.codecs.correction.fit import lifting_levels
+from mocapz.format.container import Container
+from mocapz.format.entropy import read_uvarint
+from mocapz.model.motion import AnyMotion
+
+
+def _fits(monkeypatch: pytest.MonkeyPatch) -> list[int]:
+    """The lifting depth of every correction :func:`search.fit` codes from now on."""
+    depths: list[int] = []
+    real = search.fit
+
+    def counted(*args, **kw):  # noqa: ANN002, ANN003, ANN202
+        depths.append(args[4] if len(args) > 4 else kw["depth"])  # (clip, base, bound, relax_by, depth)
+        return real(*args, **kw)
+
+    monkeypatch.setattr(search, "fit", counted)
+    return depths
+
+
+def _depth(data: bytes) -> int:
+    """The lifting depth a file's correction was coded with (its ``c.head``: format, base kind, depth, ...)."""
+    head = Container.from_bytes(data).sections["c.head"]
+    pos = 0
+    for _ in range(2):
+        _, pos = read_uvarint(head, pos)
+    return read_uvarint(head, pos)[0]
+
+
+def _max_error_cm(m: AnyMotion, data: bytes) -> float:
+    rep = mocapz.evaluate(m, mocapz.decompress(data))
+    assert rep.max_err_cm is not None
+    return rep.max_err_cm
+
+
+@pytest.mark.slow
+def test_fast_codes_a_long_clip_once_and_best_is_never_larger(monkeypatch: pytest.MonkeyPatch) -> None:
+    m = mocapz.load(data_path("cmu/bvh/06_13.bvh"))  # 4,906 frames: the default chooses on two windows
+    fits = _fits(monkeypatch)
+    sizes = {}
+    for effort in ("fast", "default", "best"):
+        fits.clear()
+        data = mocapz.compress(m, codec="quant", max_error="1cm", effort=effort)
+        sizes[effort] = len(data)
+        assert _max_error_cm(m, data) <= 1.0 + 1e-9, effort
+        assert added_skate(m, mocapz.decompress(data)) <= 0.5, effort
+        if effort == "fast":
+            assert fits == [lifting_levels(m.frame_rate)] == [_depth(data)]  # one fit, the frame rate's depth
+        else:
+            assert len(fits) >= 3  # the default's windows and its whole clip; best: each depth, whole
+    # a max error bound's fit depends on the setting alone, and best codes the default's choice among the others
+    assert sizes["best"] <= sizes["default"]
+
+
+@pytest.mark.parametrize("codec", ["pga", "patterns"])
+def test_fast_meets_the_target_with_a_model(codec: str, monkeypatch: pytest.MonkeyPatch) -> None:
+    m = mocapz.load(data_path("cmu/bvh/09_06.bvh"))
+    fits = _fits(monkeypatch)
+    data = mocapz.compress(m, codec=codec, max_error="1cm", effort="fast")
+    assert _max_error_cm(m, data) <= 1.0 + 1e-9
+    assert set(fits) == {lifting_levels(m.frame_rate)}  # the model and the zero base, one depth each
+    assert len(fits) <= 2
+
+
+def test_an_unknown_effort_is_refused_on_one_line(tmp_path: Path) -> None:
+    out = tmp_path / "x.mcz"
+    res = mocapz_cli("compress", data_path(RUN), "-o", out, "--codec", "quant", "--effort", "max")
+    assert "fast, default, best" in assert_one_line_error(res, "effort", code=2) and not out.exists()
