@@ -1,5 +1,5 @@
-"""The ``effort`` option (issue 12: encode speed with a target): ``fast`` codes a long clip once at the frame
-rate's lifting depth, ``best`` codes every setting on the whole clip, and every effort meets the target with
+"""The ``effort`` option (issue 12: encode speed with a target): ``fast`` codes a long clip once at one lifting
+depth, ``best`` codes every setting on the whole clip, and every effort meets the target with
 the feet held, on real clips."""
 
 from __future__ import annotations
@@ -14,6 +14,7 @@ from test_targets import added_skate
 import mocapz
 from mocapz.codecs.correction import search
 from mocapz.codecs.correction.fit import lifting_levels
+from mocapz.codecs.correction.search import FAST_DEPTH
 from mocapz.format.container import Container
 from mocapz.format.entropy import read_uvarint
 from mocapz.model.motion import AnyMotion
@@ -59,7 +60,7 @@ def test_fast_codes_a_long_clip_once_and_best_is_never_larger(monkeypatch: pytes
         assert _max_error_cm(m, data) <= 1.0 + 1e-9, effort
         assert added_skate(m, mocapz.decompress(data)) <= 0.5, effort
         if effort == "fast":
-            assert fits == [lifting_levels(m.frame_rate)] == [_depth(data)]  # one fit, the frame rate's depth
+            assert fits == [lifting_levels(m.frame_rate) + FAST_DEPTH] == [_depth(data)]  # one fit, one depth
         else:
             assert len(fits) >= 3  # the default's windows and its whole clip; best: each depth, whole
     # a max error bound's fit depends on the setting alone, and best codes the default's choice among the others
@@ -72,7 +73,7 @@ def test_fast_meets_the_target_with_a_model(codec: str, monkeypatch: pytest.Monk
     fits = _fits(monkeypatch)
     data = mocapz.compress(m, codec=codec, max_error="1cm", effort="fast")
     assert _max_error_cm(m, data) <= 1.0 + 1e-9
-    assert set(fits) == {lifting_levels(m.frame_rate)}  # the model and the zero base, one depth each
+    assert set(fits) == {lifting_levels(m.frame_rate) + FAST_DEPTH}  # the model and the zero base, one depth each
     assert len(fits) <= 2
 
 
@@ -80,3 +81,33 @@ def test_an_unknown_effort_is_refused_on_one_line(tmp_path: Path) -> None:
     out = tmp_path / "x.mcz"
     res = mocapz_cli("compress", data_path(RUN), "-o", out, "--codec", "quant", "--effort", "max")
     assert "fast, default, best" in assert_one_line_error(res, "effort", code=2) and not out.exists()
+
+
+def test_the_effort_script_measures_and_reports(tmp_path: Path) -> None:
+    """``scripts/effort.py`` on one clip: every effort's file checked against the target, one table row per
+    codec whose totals are the clips' sums."""
+    import sys
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "scripts"))
+    import effort  # noqa: PLC0415
+
+    rows = effort.measure("quant", ["fast", "default"], "1cm", [data_path(RUN)])
+    assert [r["clip"] for r in rows] == ["09_06"] and rows[0]["frames"] == 142
+    for e in ("fast", "default"):
+        size, seconds, err_cm, _ = rows[0][e]
+        assert size > 0 and seconds > 0 and err_cm <= 1.0 + 1e-9
+    text = effort.report({"quant": rows}, ["fast", "default"], "1cm", "--clips 09_06")
+    assert f"| quant | {rows[0]['fast'][0]:,} |" in text and "| quant | 09_06 | 142 |" in text
+
+
+@pytest.mark.slow
+def test_fast_falls_back_a_depth_when_its_rounds_run_out(monkeypatch: pytest.MonkeyPatch) -> None:
+    """CMU lambada at 1 cm, lifting depth 5: a raised foot's speed swings around its limit while the jitter
+    tightens every joint, and the 40 rounds run out with the levels far up (88 kB; depth 4 codes it in 18 kB).
+    Fast, made to start at depth 5, codes depth 4 as well and keeps the smaller."""
+    m = mocapz.load(data_path("cmu/asfamc/lambada.amc"))
+    monkeypatch.setattr(search, "FAST_DEPTH", 5 - lifting_levels(m.frame_rate))
+    fits = _fits(monkeypatch)
+    data = mocapz.compress(m, codec="quant", max_error="1cm", effort="fast")
+    assert fits == [5, 4] and _depth(data) == 4
+    assert len(data) < 25_000 and _max_error_cm(m, data) <= 1.0 + 1e-9

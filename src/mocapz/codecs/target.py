@@ -43,9 +43,9 @@ TARGET_OPTIONS: tuple[Option, ...] = (
     Option("hold_feet", "bool", "keep planted feet still: on the original's foot contacts (METRICS.md) the speed "
            "the decoded feet add is verified (at most 0.3 cm/s, frame to frame and over 0.1 s) and the joints above "
            "them tightened until it holds", default=True),
-    Option("effort", "choice", "how hard the correction searches for the smallest file meeting the target: fast (the "
-           "lifting depth of the frame rate, coded once), default (three depths, a long clip's chosen on two 6-s "
-           "windows), best (three depths, each coded on the whole clip); every one meets the target",
+    Option("effort", "choice", "how hard the correction searches for the smallest file meeting the target: fast "
+           "(one lifting depth, knots an eighth of a second apart, coded once), default (three depths, a long clip's "
+           "chosen on two 6-s windows), best (three depths, each coded on the whole clip); every one meets the target",
            default="default", choices=EFFORTS),
 )
 TARGET_NAMES = ("max_error", "max_distortion", "max_arms")

@@ -72,6 +72,7 @@ class Correction:
     jitter: float = 0.0
     added: float = 0.0  # acceleration energy added (file units squared, summed over frames and points)
     depth: int = 0  # lifting levels (knots 2 ** depth frames apart)
+    settled: bool = True  # the verification rounds ended before MAX_ROUNDS (False: they ran out, levels high)
 
 
 class Clip:
@@ -275,7 +276,7 @@ def fit(clip: Clip, base: np.ndarray, e: float, relax_by: float = bounds.RELAX, 
     tighter = bounds.groups_moving(lay, clip.held()) & feet[None, :]
     levels = np.where(tighter, np.maximum(cap - relax + FOOT_START, 0), np.maximum(cap - relax, 0))
     del tighter
-    (q, y, pos), jit = _rounds(clip, x, base, t0, levels, cap, bound, depth, feet, e <= clip.smooth_up_to())
+    (q, y, pos), jit, settled = _rounds(clip, x, base, t0, levels, cap, bound, depth, feet, e <= clip.smooth_up_to())
     if clip.chain is not None:
         clip.chain.forget()  # what the rounds shared
     frames = x.shape[0]
@@ -289,21 +290,24 @@ def fit(clip: Clip, base: np.ndarray, e: float, relax_by: float = bounds.RELAX, 
         "c.res": lifting.pack(q, frames, depth),
     }
     size = sum(len(v) + 8 for v in sections.values())
-    return Correction(sections, size, errors, e, jit, added, depth)
+    return Correction(sections, size, errors, e, jit, added, depth, settled)
 
 
 Coding = tuple[np.ndarray, np.ndarray, np.ndarray]  # integers, decoded residual, decoded positions
 
 
 def _rounds(clip: Clip, x: np.ndarray, base: np.ndarray, t0: np.ndarray, levels: np.ndarray, cap: np.ndarray,
-            bound: np.ndarray, depth: int, feet: np.ndarray, smooth: bool) -> tuple[Coding, float]:
+            bound: np.ndarray, depth: int, feet: np.ndarray, smooth: bool) -> tuple[Coding, float, bool]:
     """The verification rounds of :func:`fit` (``levels`` ``(frames, groups)`` raised in place, at most to
-    ``cap``, or beyond for the jitter and the feet), then :func:`_settle`: the coding and the added jitter. What
+    ``cap``, or beyond for the jitter and the feet), then :func:`_settle`: the coding, the added jitter and
+    whether the rounds settled (False: :data:`MAX_ROUNDS` ran out, e.g. a planted foot's speed swinging around
+    its limit while the jitter tightens every joint). What
     a round makes is let go before the next round codes (and all of it on return: peak memory)."""
     lay, valid = clip.layout, clip.valid
     jit = 0.0
     last = None  # the coding of the current levels
     slid = math.inf  # the feet's added speed the round before
+    settled = False
     for _ in range(MAX_ROUNDS):
         q, y, pos = last = clip.quantise(x, base, bounds.tolerances(t0, lay, levels), depth)
         with np.errstate(invalid="ignore"):
@@ -332,11 +336,12 @@ def _rounds(clip: Clip, x: np.ndarray, base: np.ndarray, t0: np.ndarray, levels:
             moved |= bounds.tighten(levels, limit, lay, samples, step, only) or (
                 only is not None and bounds.tighten(levels, limit, lay, samples, step))  # then every joint above
         if not moved:
+            settled = True
             break
         # this round's coding is done with: the next one is made without it beside (peak memory)
         last = None
         del q, y, pos, misses, todo, samples
-    return _settle(clip, x, base, t0, levels, cap, bound, depth, last), jit
+    return _settle(clip, x, base, t0, levels, cap, bound, depth, last), jit, settled
 
 
 def _widen(samples: np.ndarray) -> np.ndarray:
