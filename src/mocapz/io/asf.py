@@ -28,7 +28,6 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from mocapz.errors import FormatError
 from mocapz.io.common import guess_unit_cm, read_text, rest_height
@@ -305,6 +304,7 @@ def _axis_matrix(angles: np.ndarray, order: str, unit: str) -> np.ndarray:
     if not np.any(angles):
         return np.eye(3)
     vals = [angles["XYZ".index(a)] for a in order]
+    from scipy.spatial.transform import Rotation  # noqa: I001 (on use: scipy loads slowly)
     return Rotation.from_euler(order.lower(), vals, degrees=unit == "deg").as_matrix()
 
 

@@ -15,7 +15,6 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from mocapz.errors import FormatError, MocapzError
 from mocapz.io.asf import CHANNEL_DOF, build_skeleton, parse_asf_text
@@ -184,6 +183,7 @@ def _axis_text(axis: np.ndarray) -> str:
         return "0 0 0 XYZ"
     with warnings.catch_warnings():  # gimbal lock (e.g. axis -90 90 0) still gives the same matrix
         warnings.simplefilter("ignore", UserWarning)
+        from scipy.spatial.transform import Rotation  # noqa: I001 (on use: scipy loads slowly)
         angles = Rotation.from_matrix(axis).as_euler("xyz", degrees=True)
     return " ".join(_num(a) for a in angles) + " XYZ"
 

@@ -19,7 +19,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.ndimage import minimum_filter1d
 
 from mocapz.model.motion import AnyMotion, Motion
 
@@ -33,9 +32,18 @@ def floor_heights(h: np.ndarray, back: int) -> np.ndarray:
     missing samples as ``inf``."""
     if h.size == 0:
         return h.copy()
-    # a window of back + 1 samples centred on t + back // 2 shifted to end at t; "nearest" repeats h[0],
-    # which changes no minimum
-    return minimum_filter1d(h, size=back + 1, mode="nearest", origin=back // 2)
+    # minima over trailing windows of 1, 2, 4, ... samples (before the first sample: h[0], which is in every
+    # window that reaches it), then two overlapping windows of the largest power of two make back + 1: NumPy
+    # only (scipy.ndimage costs every command 0.17 s to import), O(frames log back)
+    out = np.asarray(h, dtype=np.float64).copy()
+    span = 1
+    while 2 * span <= back + 1:
+        out = np.minimum(out, np.concatenate([np.full(span, out[0]), out[:-span]])[:out.size])
+        span *= 2
+    rest = back + 1 - span
+    if rest:
+        out = np.minimum(out, np.concatenate([np.full(rest, out[0]), out[:-rest]])[:out.size])
+    return out
 
 
 def up_axis(a: np.ndarray, valid: np.ndarray) -> int:

@@ -13,7 +13,6 @@ from __future__ import annotations
 from typing import Any
 
 import numpy as np
-from scipy.interpolate import CubicSpline
 
 from mocapz.codecs import CodecInfo
 from mocapz.codecs.baselines.common import (
@@ -60,6 +59,7 @@ def interpolate(keys: np.ndarray, values: np.ndarray, frames: int) -> np.ndarray
         return np.zeros((frames, values.shape[1]))
     if len(keys) == 1:
         return np.repeat(values[:1], frames, axis=0)
+    from scipy.interpolate import CubicSpline  # noqa: I001 (on use: scipy loads slowly)
     spline = CubicSpline(keys.astype(np.float64), values, axis=0, bc_type="not-a-knot")
     out = spline(np.arange(frames, dtype=np.float64))
     out[keys] = values  # exact at the knots

@@ -11,7 +11,6 @@ their mean layout), smoothed, and coded with the root trajectory, so both sides 
 from __future__ import annotations
 
 import numpy as np
-from scipy.ndimage import gaussian_filter1d
 
 
 def up_axis(positions: np.ndarray) -> int:
@@ -53,6 +52,7 @@ def measure_yaw(filled: np.ndarray, observed: np.ndarray, root: int, up: int, si
     s = (w * (rx * y - ry * x)).sum(axis=1)
     c = (w * (rx * x + ry * y)).sum(axis=1)
     yaw = np.unwrap(np.arctan2(s, c))
+    from scipy.ndimage import gaussian_filter1d  # noqa: I001 (on use: scipy loads slowly)
     return gaussian_filter1d(yaw, sigma, mode="nearest") if sigma > 0 else yaw
 
 

@@ -17,7 +17,6 @@ from __future__ import annotations
 import struct
 
 import numpy as np
-from scipy.ndimage import gaussian_filter1d
 
 from mocapz.errors import FormatError
 from mocapz.format.entropy import (
@@ -74,6 +73,7 @@ def _reconstruct(sym: np.ndarray, step: float, sigma: float = 0.0) -> np.ndarray
     flat = np.cumsum(sym.reshape(k * length, d), axis=0)  # grid indices, pattern after pattern
     out = flat.reshape(k, length, d) * step
     if sigma > 0 and length > 2:
+        from scipy.ndimage import gaussian_filter1d  # noqa: I001 (on use: scipy loads slowly)
         out = gaussian_filter1d(out, sigma, axis=1, mode="nearest")
     return out
 

@@ -15,7 +15,6 @@ import struct
 import warnings
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from mocapz.codecs.gaps import pack_mask, unpack_mask
 from mocapz.codecs.patterns.quantise import decode_trajectory
@@ -158,6 +157,7 @@ class SkeletalFeatures:
         out = []
         rc = self.rot_cols[j]
         if len(rc) == 3:
+            from scipy.spatial.transform import Rotation  # noqa: I001 (on use: scipy loads slowly)
             rv = Rotation.from_euler(self.sk.rotation_order[j].upper(), channels[:, rc] * self.scale).as_rotvec()
             out.append(continuous_rotvec(rv) * self.lever[j])
         elif rc:
@@ -180,6 +180,7 @@ class SkeletalFeatures:
                 rv = x[:, c : c + 3] / self.lever[j]
                 with warnings.catch_warnings():
                     warnings.simplefilter("ignore")
+                    from scipy.spatial.transform import Rotation  # noqa: I001 (on use: scipy loads slowly)
                     ang = Rotation.from_rotvec(rv).as_euler(self.sk.rotation_order[j].upper())
                 out[:, rc] = np.unwrap(ang, axis=0) / self.scale
                 c += 3

@@ -6,7 +6,6 @@ from __future__ import annotations
 import warnings
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from mocapz.codecs.pga.joints import position_columns
 from mocapz.model.skeleton import Skeleton
@@ -59,6 +58,7 @@ def channels_from_rotations(skeleton: Skeleton, local_rot: np.ndarray, out: np.n
         else:  # a repeated axis (proper Euler angles): scipy's conversion
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")
+                from scipy.spatial.transform import Rotation  # noqa: I001 (on use: scipy loads slowly)
                 ang = Rotation.from_matrix(r.reshape(-1, 3, 3)).as_euler(seq, degrees=deg).reshape(*r.shape[:2], 3)
         for g, j in enumerate(group):
             order = skeleton.rotation_order[j]
