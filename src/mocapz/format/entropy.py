@@ -88,8 +88,10 @@ def zigzag(v: np.ndarray) -> np.ndarray:
 
 
 def unzigzag(u: np.ndarray) -> np.ndarray:
-    u = np.asarray(u, dtype=np.uint64)
-    return ((u >> np.uint64(1)).astype(np.int64)) ^ (-((u & np.uint64(1)).astype(np.int64)))
+    u = np.asarray(u, dtype=np.uint64)  # (u >> 1) ^ -(u & 1), both below 2 ** 63: viewed as int64, no casts
+    out = np.right_shift(u, np.uint64(1), out=np.empty(u.shape, np.uint64)).view(np.int64)
+    out ^= np.negative(np.bitwise_and(u, np.uint64(1), out=np.empty(u.shape, np.uint64)).view(np.int64))
+    return out
 
 
 def pack_uint64(values: np.ndarray) -> bytes:
@@ -223,12 +225,6 @@ def _block_scale(q: np.ndarray, steps: int = SCALE_STEPS, bias: int = 64) -> np.
     return 2.0 ** ((q.astype(np.float64) - bias) / steps)
 
 
-def _scale_values(q: np.ndarray, rows: int, steps: int = SCALE_STEPS, bias: int = 64) -> np.ndarray:
-    """Per-symbol scale array ``(rows * cols,)`` from block codes ``q`` (``s = 2 ** ((q - bias) / steps)``)."""
-    full = np.repeat(_block_scale(q, steps, bias), BLOCK, axis=0)[:rows]
-    return np.ascontiguousarray(full, dtype=np.float64).ravel()
-
-
 def _encode_values(enc: Any, v: np.ndarray, scale: np.ndarray) -> bytes:
     """Range code the values of ``v`` ``(rows, columns)`` (row by row, clipped to the model's range; the escape
     mark where beyond) into ``enc`` under the Laplace scales ``scale`` ``(blocks, columns)`` of their blocks of
@@ -317,8 +313,7 @@ def decode_int_matrix(data: bytes, shape: tuple[int, int] | None = None) -> np.n
     if rows * cols > 1 << 34:
         raise FormatError(None, "corrupted integer stream (absurd size)")
     if coder == CODER_ZSTD:
-        flat = unzigzag(unpack_uint64(bytes(buf[pos:]), rows * cols))
-        return flat.reshape(cols, rows).T.copy()
+        return unzigzag(unpack_uint64(bytes(buf[pos:]), rows * cols)).reshape(cols, rows).T.copy()
     if coder not in (CODER_RANGE, CODER_RANGE_PACKED, CODER_RANGE_DELTA):
         raise FormatError(None, f"unknown entropy coder id {coder}")
     if not HAVE_CONSTRICTION:
@@ -343,13 +338,12 @@ def decode_int_matrix(data: bytes, shape: tuple[int, int] | None = None) -> np.n
             raise FormatError(None, "truncated integer stream (scales)")
         q = np.frombuffer(bytes(buf[pos:end]), dtype=np.uint8).reshape(nb, cols)
     esc_bytes, body = _escapes_and_body(buf, end)
-    model = constriction.stream.model.QuantizedLaplace(-LIMIT, LIMIT)
     try:
         dec = constriction.stream.queue.RangeDecoder(np.frombuffer(body, dtype=np.uint32).copy())
-        sym = dec.decode(model, np.zeros(rows * cols), _scale_values(q, rows)).astype(np.int64)
+        sym, marks = _decode_values(dec, _block_scale(q), rows, cols)
     except Exception as exc:  # constriction raises plain exceptions on corrupt input
         raise FormatError(None, f"corrupted entropy-coded data ({exc})") from None
-    return _unescape(sym.reshape(rows, cols), esc_bytes)
+    return _unescape(sym, esc_bytes, marks)
 
 
 def _escapes_and_body(buf: memoryview, pos: int) -> tuple[bytes, bytes]:
@@ -364,13 +358,25 @@ def _escapes_and_body(buf: memoryview, pos: int) -> tuple[bytes, bytes]:
     return esc_bytes, body
 
 
-def _unescape(sym: np.ndarray, esc_bytes: bytes) -> np.ndarray:
-    """``sym`` with its escape marks replaced by the values stored aside."""
-    esc_pos = np.abs(sym) >= LIMIT
-    if esc_pos.any():
+def _decode_values(dec: Any, scale: np.ndarray, rows: int, cols: int) -> tuple[np.ndarray, np.ndarray]:
+    """The values ``(rows, cols)`` under the scales ``scale`` ``(blocks, cols)`` of their :data:`BLOCK` rows, and
+    the flat positions of their escape marks; :data:`CHUNK_VALUES` values per call, as coded (small arrays)."""
+    model, out, marks = constriction.stream.model.QuantizedLaplace(-LIMIT, LIMIT), np.empty((rows, cols), np.int64), []
+    step, means = max(1, CHUNK_VALUES // cols), np.zeros(min(rows, max(1, CHUNK_VALUES // cols)) * cols)
+    for a in range(0, rows, step):
+        part = out[a:a + step]
+        sym = dec.decode(model, means[:part.size], scale[np.arange(a, a + len(part)) // BLOCK].ravel())
+        part[...] = sym.reshape(part.shape)
+        marks.append(np.flatnonzero(np.abs(sym) >= LIMIT) + a * cols)
+    return out, np.concatenate(marks)
+
+
+def _unescape(sym: np.ndarray, esc_bytes: bytes, marks: np.ndarray) -> np.ndarray:
+    """``sym`` with its escape marks (flat positions ``marks``) replaced by the values stored aside."""
+    if marks.size:
         if not esc_bytes:
             raise FormatError(None, "corrupted integer stream (escapes missing)")
-        sym[esc_pos] = unzigzag(unpack_uint64(esc_bytes, int(esc_pos.sum())))
+        sym.reshape(-1)[marks] = unzigzag(unpack_uint64(esc_bytes, marks.size))
     return sym
 
 
@@ -386,10 +392,9 @@ def _decode_delta(buf: memoryview, pos: int, rows: int, cols: int, nb: int) -> n
         q = np.cumsum(diffs.astype(np.int64)) + QUARTER_BIAS
         if q.min() < 0 or q.max() > QUARTER_TOP:
             raise FormatError(None, "corrupted integer stream (scales)")
-        sym = dec.decode(constriction.stream.model.QuantizedLaplace(-LIMIT, LIMIT), np.zeros(rows * cols),
-                         _scale_values(q.reshape(nb, cols), rows, 4, QUARTER_BIAS)).astype(np.int64)
+        sym, marks = _decode_values(dec, _block_scale(q.reshape(nb, cols), 4, QUARTER_BIAS), rows, cols)
     except FormatError:
         raise
     except Exception as exc:  # constriction raises plain exceptions on corrupt input
         raise FormatError(None, f"corrupted entropy-coded data ({exc})") from None
-    return _unescape(sym.reshape(rows, cols), esc_bytes)
+    return _unescape(sym, esc_bytes, marks)

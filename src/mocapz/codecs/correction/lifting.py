@@ -196,3 +196,27 @@ def decode(q_all: np.ndarray, tol: np.ndarray, levels: int, shrink: float = 1.0)
         y[idx] = pred + q * (STEP * level_factor(level, shrink) * tp[idx])
         pos += m
     return y[:frames]
+
+
+def decode_table(q_all: np.ndarray, tol_col: np.ndarray, halves: np.ndarray, lev: np.ndarray, groups: np.ndarray,
+                 levels: int, shrink: float = 1.0) -> np.ndarray:
+    """:func:`decode` with ``tol = tol_col[None, :] * halves[lev][:, groups]`` (``tol_col`` ``(columns,)``, a
+    table ``halves``, indices ``lev`` ``(frames, groups)`` into it and ``groups`` ``(columns,)`` into ``lev``'s
+    columns): the same bits. The compiled kernel (when loaded) reads the tolerances from the table, without a
+    frames x columns array of them."""
+    frames, cols = lev.shape[0], groups.size
+    lv, n = plan(frames, levels)
+    kern = kernels(frames, "liftkernels") if cols and lv and q_all.shape[0] >= n else None
+    if kern is None:
+        return decode(q_all, tol_col[None, :] * halves[lev][:, groups], levels, shrink)
+    span = 1 << lv
+    n0 = len(range(0, n, span))
+    rows = np.minimum(np.arange(n0) * span, frames - 1)  # the knots (the last may lie in the padding)
+    knots = np.minimum(tol_col[None, :] * halves[lev[rows]][:, groups], BIG)
+    y = np.empty((n, cols))  # every row is written: the knots here, the details by the kernel
+    y[::span] = np.cumsum(q_all[:n0], axis=0) * (2.0 * level_factor(lv, shrink) * knots.min(axis=0))
+    factors = np.array([level_factor(level, shrink) for level in range(lv)])
+    kern.decode_details(np.ascontiguousarray(q_all, dtype=np.int64), np.ascontiguousarray(tol_col, dtype=np.float64),
+                        np.ascontiguousarray(halves, dtype=np.float64), np.ascontiguousarray(lev, dtype=np.int64),
+                        np.ascontiguousarray(groups, dtype=np.int64), y, lv, factors, STEP, n0, frames, BIG)
+    return y[:frames]

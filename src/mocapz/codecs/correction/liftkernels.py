@@ -53,3 +53,58 @@ def details(xp, tp, y, q, levels: int, factors, step_scale: float, row0: int) ->
                 q[row + t, c] = qi
                 y[i, c] = pred + qi * step
         row += m
+
+
+@jit
+def decode_details(q, tol_col, halves, lev, groups, y, levels: int, factors, step_scale: float, row0: int,
+                   frames: int, big: float) -> None:
+    """:func:`~.lifting.decode_table`'s detail levels, coarse to fine, into ``y`` ``(n, columns)`` (the decoded
+    knots on entry): the integers ``q`` (rows from ``row0``), the tolerance of frame ``t``, column ``c``
+    ``tol_col[c] * halves[lev[t, groups[c]]]`` capped at ``big`` as ``np.minimum`` does (NaN stays NaN), rows
+    past ``frames`` repeating the last as :func:`~.lifting._pad` does. The same float operations in the same
+    order as the NumPy path of :func:`~.lifting.decode`: the same bits."""
+    n, cols = y.shape
+    row = row0
+    for level in range(levels - 1, -1, -1):
+        h = 1 << level
+        m = len(range(h, n - 1, 2 * h))
+        hi = min(m, (n - 1 - 4 * h) // (2 * h) + 1)
+        t_step = step_scale * factors[level]
+        for t in range(m):
+            i = h + 2 * h * t
+            lev_i = lev[min(i, frames - 1)]
+            qr = q[row + t]
+            for c in range(cols):
+                left = y[i - h, c]
+                right = y[i + h, c]
+                if 1 <= t < hi:
+                    pred = (9.0 * (left + right) - (y[i - 3 * h, c] + y[i + 3 * h, c])) / 16.0
+                else:
+                    pred = 0.5 * (left + right)
+                tv = tol_col[c] * halves[lev_i[groups[c]]]
+                if tv > big:
+                    tv = big
+                y[i, c] = pred + qr[c] * (t_step * tv)
+        row += m
+
+
+@jit
+def rn_levels(q, recon, levels: int, lod: int, step: float, offs, wts, taps) -> None:
+    """:func:`mocapz.codecs.pga.lifting.decode_rn`'s levels, coarse to fine, into ``recon`` ``(n, d)`` (sample 0
+    set): each odd sample predicted by its stencil (``offs``, ``wts``, ``taps`` indexed by ``4 * (p - 3s >= 0) +
+    2 * (p + s < n) + (p + 3s < n)``: the taps' offsets in level steps, weights, count), the taps added in
+    stencil order, plus its stored detail ``q`` (rows from 1) times ``step`` except on the ``lod`` finest
+    levels. The same float operations in the same order as the NumPy path: the same bits."""
+    n, d = recon.shape
+    row = 1
+    for lev in range(levels - 1, -1, -1):
+        s = 1 << lev
+        for p in range(s, n, 2 * s):
+            key = 4 * (p - 3 * s >= 0) + 2 * (p + s < n) + (p + 3 * s < n)
+            for c in range(d):
+                acc = wts[key, 0] * recon[p + offs[key, 0] * s, c]
+                for tap in range(1, taps[key]):
+                    acc = acc + wts[key, tap] * recon[p + offs[key, tap] * s, c]
+                recon[p, c] = acc if lev < lod else acc + q[row, c] * step
+            if lev >= lod:
+                row += 1

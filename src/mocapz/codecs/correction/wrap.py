@@ -42,6 +42,7 @@ DEFAULT_ERROR_CM = 1.0  # the default target (codecs.target.DEFAULT_TARGET_TEXT)
 # when the length unit is unknown
 FORMAT = 2  # 1: every lifting level within the whole tolerance; 2: a shrink factor per level (c.head)
 BASE_NONE, BASE_MODEL = 0, 1
+ROWS = 512  # rows per chunk of the wrap-around pass
 
 
 def resolve_target(motion: AnyMotion, options: dict[str, Any]) -> Target:
@@ -185,21 +186,28 @@ def apply(sections: Sections, header: ClipHeader, decode: Decoder) -> AnyMotion:
         raise FormatError(None, f"corrupted correction (missing section {exc})") from None
     # 2 ** (-level / 2) from a table of the levels' values (the same numbers, without a power per value)
     halves = 2.0 ** (-np.arange(int(lev.max(initial=0)) + 1, dtype=np.float64) / 2.0)
-    tol = bounds.tol_of(codes)[None, :] * halves[lev][:, groups]
-    y = lifting.decode(q, tol, levels, code / 100.0)
+    # tol = tol_of(codes)[None, :] * halves[lev][:, groups], read from the table by the compiled kernel
+    y = lifting.decode_table(q, bounds.tol_of(codes), halves, lev, groups, levels, code / 100.0)
     if not y.any():
         return base_motion
-    out = value_matrix(base_motion) + y
     if isinstance(base_motion, Motion):
-        rot = np.flatnonzero(header.rotation_mask)
-        half = header.period / 2
-        # mod(o + half, period) - half where the correction moved a value (only there: a float mod is slow)
-        o, moved = out[:, rot], y[:, rot] != 0
-        w = o + half
-        np.mod(w, header.period, out=w, where=moved)
-        np.subtract(w, half, out=o, where=moved)
-        out[:, rot] = o
-        return base_motion.with_channels(out)
+        base, rot = value_matrix(base_motion), header.rotation_mask
+        period = header.period
+        half = period / 2
+        # base + y, then mod(o + half, period) - half where the correction moved a value (only there: a float
+        # mod is slow; mod(w, period) is w itself for w in [0, period), fmod being exact, so only the others take
+        # it), by chunks of rows, in place in y (no fresh frames x columns arrays)
+        for a in range(0, y.shape[0], ROWS):
+            o = y[a:a + ROWS]
+            moved = (o != 0) & rot
+            np.add(base[a:a + ROWS], o, out=o)
+            w = o + half
+            outside = moved & ~((w >= 0.0) & (w < period))  # NaN counts as outside
+            np.subtract(w, half, out=o, where=moved)
+            if outside.any():
+                o[outside] = np.mod(w[outside], period) - half
+        return base_motion.with_channels(y)
+    out = value_matrix(base_motion) + y
     return base_motion.with_positions(out.reshape(base_motion.positions.shape))
 
 

@@ -67,14 +67,21 @@ def channels_from_rotations(skeleton: Skeleton, local_rot: np.ndarray, out: np.n
                 out[:, slices[j].start + chs.index(f"{a}rotation")] = ang[:, g, i]
 
 
-def unwrap(values: np.ndarray, period: float) -> np.ndarray:
-    """``np.unwrap(values, period=period, axis=0)``, quicker when few columns jump by half a turn or more
-    (only those are unwrapped; the others are returned as they are, plus 0.0 as np.unwrap adds)."""
-    jumps = ~(np.abs(np.diff(values, axis=0)) < period / 2).all(axis=0)  # NaN counts as a jump, as in np.unwrap
-    out = values + 0.0
+ROWS = 512  # rows per chunk of the in-place passes (their temporaries stay small: cached, not fresh pages)
+
+
+def unwrap_columns(out: np.ndarray, cols: np.ndarray, period: float) -> None:
+    """``np.unwrap(out[:, cols], period=period, axis=0)`` in place (``cols`` a boolean mask ``(C,)`` of ``out``
+    ``(F, C)``), quicker when few columns jump by half a turn or more: only those are unwrapped, the others get
+    the 0.0 np.unwrap adds; the tests and additions by chunks of :data:`ROWS` rows."""
+    smooth = cols.copy()  # NaN counts as a jump, as in np.unwrap
+    for a in range(0, max(out.shape[0] - 1, 0), ROWS):
+        smooth &= (np.abs(np.diff(out[a:a + ROWS + 1], axis=0)) < period / 2).all(axis=0)
+    jumps = cols & ~smooth
+    for a in range(0, out.shape[0], ROWS):
+        np.add(out[a:a + ROWS], 0.0, out=out[a:a + ROWS], where=smooth)
     if jumps.any():
-        out[:, jumps] = np.unwrap(values[:, jumps], period=period, axis=0)
-    return out
+        out[:, jumps] = np.unwrap(out[:, jumps], period=period, axis=0)
 
 
 def channels_from_pose(skeleton: Skeleton, local_rot: np.ndarray, root_pos: np.ndarray,
@@ -92,13 +99,13 @@ def finish_channels(skeleton: Skeleton, out: np.ndarray, root_pos: np.ndarray, o
     root_cols, other_cols = position_columns(skeleton)
     rot_cols = skeleton.rotation_columns()
     period = 360.0 if skeleton.angle_unit == "deg" else 2 * np.pi
-    out[:, rot_cols] = unwrap(out[:, rot_cols], period)
+    unwrap_columns(out, rot_cols, period)
     labels = skeleton.channel_labels()
     for c in root_cols:
         out[:, c] = root_pos[:, "XYZ".index(labels[c].split(".")[-1][0])]
     out[:, other_cols] = other
-    if np.isfinite(out).all():  # np.nan_to_num's passes only when they change something (same values)
-        return out
+    if all(np.isfinite(out[a:a + ROWS]).all() for a in range(0, out.shape[0], ROWS)):  # np.nan_to_num's passes
+        return out  # only when they change something (same values)
     return np.nan_to_num(out)
 
 

@@ -70,6 +70,8 @@ def decode_channels(skeleton: Skeleton, s: PGASettings, sections: dict[str, byte
     # every stream is read, and checked against the frame count, before frames x channels are allocated
     exact = decode_outliers(sections["outl"], outliers.size, skeleton.n_channels) if outliers.size else None
     kept_values = decode_kept(skeleton, s, sections, n, edit) if n else None
+    if exact is None and kept_values is not None and kept_values.shape == (frames, skeleton.n_channels):
+        return kept_values  # every frame kept: no copy
     out = np.zeros((frames, skeleton.n_channels))
     if kept_values is not None:
         out[kept_frames(frames, outliers)] = kept_values

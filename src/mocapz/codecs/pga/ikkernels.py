@@ -17,53 +17,63 @@ jit = njit(cache=True, nogil=True, error_model="numpy")
 
 
 @jit
-def rodrigues1(w0: float, w1: float, w2: float, r: np.ndarray, jr: np.ndarray, q: int, with_jr: bool) -> None:
-    """``exp(w)`` into ``r[:, :, q]`` and ``J_r(w)`` into ``jr[:, :, q]`` (the closed form of
-    :func:`mocapz.codecs.pga.iksolve.rodrigues`)."""
+def rodrigues1(w0: float, w1: float, w2: float, r: np.ndarray) -> None:
+    """``exp(w)`` into ``r`` (3, 3) (the closed form of :func:`mocapz.codecs.pga.iksolve.rodrigues`)."""
     th2 = w0 * w0 + w1 * w1 + w2 * w2
     th = math.sqrt(th2)
     if th < 1e-4:
         a = 1.0 - th2 / 6.0
         b = 0.5 - th2 / 24.0
-        cc = 1.0 / 6.0 - th2 / 120.0
     else:
-        s = math.sin(th)
-        c = math.cos(th)
-        a = s / th
-        b = (1.0 - c) / (th * th)
-        cc = (th - s) / (th**3)
+        a = math.sin(th) / th
+        b = (1.0 - math.cos(th)) / (th * th)
     w = (w0, w1, w2)
     for i in range(3):
         for j in range(3):
-            k2 = w[i] * w[j]
-            if i == j:
-                k2 -= th2
-            r[i, j, q] = b * k2
-            if with_jr:
-                jr[i, j, q] = cc * k2
-    for i in range(3):
-        r[i, i, q] += 1.0
-        if with_jr:
-            jr[i, i, q] += 1.0
-    # K = [[0, -w2, w1], [w2, 0, -w0], [-w1, w0, 0]]; r += a K, jr -= b K
-    r[0, 1, q] -= a * w2
-    r[1, 0, q] += a * w2
-    r[0, 2, q] += a * w1
-    r[2, 0, q] -= a * w1
-    r[1, 2, q] -= a * w0
-    r[2, 1, q] += a * w0
-    if with_jr:
-        jr[0, 1, q] += b * w2
-        jr[1, 0, q] -= b * w2
-        jr[0, 2, q] -= b * w1
-        jr[2, 0, q] += b * w1
-        jr[1, 2, q] += b * w0
-        jr[2, 1, q] -= b * w0
+            r[i, j] = b * (w[i] * w[j] - th2) + 1.0 if i == j else b * (w[i] * w[j])
+    # K = [[0, -w2, w1], [w2, 0, -w0], [-w1, w0, 0]]; r += a K
+    r[0, 1] -= a * w2
+    r[1, 0] += a * w2
+    r[0, 2] += a * w1
+    r[2, 0] -= a * w1
+    r[1, 2] -= a * w0
+    r[2, 1] += a * w0
 
 @jit
-def rodrigues(w0: np.ndarray, w1: np.ndarray, w2: np.ndarray, r: np.ndarray, jr: np.ndarray) -> None:
-    for q in range(w0.size):
-        rodrigues1(w0[q], w1[q], w2[q], r, jr, q, True)
+def rodrigues(w0: np.ndarray, w1: np.ndarray, w2: np.ndarray, r: np.ndarray, jr: np.ndarray, sc: np.ndarray) -> None:
+    """``exp(w)`` into ``r`` and ``J_r(w)`` into ``jr`` (3, 3, L) for every lane: :func:`rodrigues1`'s float
+    operations, only ``sin`` and ``cos`` lane by lane, the rest vectorised over lanes; ``sc`` (7, L) scratch."""
+    nq = w0.size
+    th2, th, s, c, a, b, cc = sc[0], sc[1], sc[2], sc[3], sc[4], sc[5], sc[6]
+    for q in range(nq):
+        th2[q] = w0[q] * w0[q] + w1[q] * w1[q] + w2[q] * w2[q]
+        th[q] = math.sqrt(th2[q])
+    for q in range(nq):
+        s[q], c[q] = math.sin(th[q]), math.cos(th[q])
+    for q in range(nq):
+        t2, t = th2[q], th[q]
+        a[q] = 1.0 - t2 / 6.0 if t < 1e-4 else s[q] / t
+        b[q] = 0.5 - t2 / 24.0 if t < 1e-4 else (1.0 - c[q]) / (t * t)
+        cc[q] = 1.0 / 6.0 - t2 / 120.0 if t < 1e-4 else (t - s[q]) / (t**3)
+    for i in range(3):
+        wi = w0 if i == 0 else (w1 if i == 1 else w2)
+        for j in range(3):
+            wj = w0 if j == 0 else (w1 if j == 1 else w2)
+            wk = w0 if i + j == 3 else (w1 if i + j == 2 else w2)  # K[i, j] = +-w_k, K = hat(w)
+            ri, ji = r[i, j], jr[i, j]
+            if i == j:
+                for q in range(nq):
+                    k2 = wi[q] * wj[q] - th2[q]
+                    ri[q], ji[q] = b[q] * k2 + 1.0, cc[q] * k2 + 1.0
+            elif (j - i) % 3 == 2:  # K[i, j] = +w_k: r += a K, jr -= b K
+                for q in range(nq):
+                    k2 = wi[q] * wj[q]
+                    ri[q], ji[q] = b[q] * k2 + a[q] * wk[q], cc[q] * k2 - b[q] * wk[q]
+            else:  # K[i, j] = -w_k
+                for q in range(nq):
+                    k2 = wi[q] * wj[q]
+                    ri[q], ji[q] = b[q] * k2 - a[q] * wk[q], cc[q] * k2 + b[q] * wk[q]
+
 
 @jit
 def mul33(a: np.ndarray, b: np.ndarray, out: np.ndarray) -> None:
@@ -83,10 +93,10 @@ def mul33_lanes(x: np.ndarray, y: np.ndarray, out: np.ndarray, nq: int) -> None:
 
 @jit
 def forward(x, basis_t, mean, order, parent, mslot, rest, trans, carrier, end_off,  # noqa: ANN001
-            w, r, jr, local, g, o, pos):
+            w, r, jr, local, g, o, pos, sc):
     """FK of a block of ``LANES`` frames (frames on the last axis of every array): effector positions
     ``pos`` (e, 3, L), chain rotations ``g`` (N, 3, 3, L) and origins ``o`` (N, 3, L), right Jacobians
-    ``jr`` (m, 3, 3, L) of the moving joints, for coordinates ``x`` (k, L)."""
+    ``jr`` (m, 3, 3, L) of the moving joints, for coordinates ``x`` (k, L); ``sc`` (7, L) scratch."""
     k, m3 = basis_t.shape
     nq = x.shape[1]  # LANES (a run-time count: numba vectorises such loops, not fixed-count ones)
     w[:] = 0.0
@@ -96,7 +106,7 @@ def forward(x, basis_t, mean, order, parent, mslot, rest, trans, carrier, end_of
             for q in range(nq):
                 w[i, q] += bc * x[c, q]
     for n in range(m3 // 3):
-        rodrigues(w[3 * n], w[3 * n + 1], w[3 * n + 2], r, jr[n])
+        rodrigues(w[3 * n], w[3 * n + 1], w[3 * n + 2], r, jr[n], sc)
         mn = mean[n]
         for a in range(3):
             for b in range(3):
@@ -152,13 +162,13 @@ def solve_block(x, tf, pf, tr, basis, basis_t, mean, order, parent, mslot, rest,
                 end_off, m_place, moves, inv_l2, lam_prior, use_prior, iterations, ws):
     """LM on one block of ``LANES`` frames: ``x`` (k, L) in place, targets ``tf`` (3e, L), prior ``pf``
     (k, L), translations ``tr`` (J, 3, L); ``ws`` the work arrays."""
-    (w, r, u, v, jac, am, bv, step, xn, mu, c_old, c_new, ok, cur, new) = ws
+    (w, r, u, v, jac, am, bv, step, xn, mu, c_old, c_new, ok, cur, new, sc) = ws
     k, nq = x.shape
     m = m_place.size
     e = carrier.size
     jr_c, loc_c, g_c, o_c, pos_c = cur
     forward(x, basis_t, mean, order, parent, mslot, rest, tr, carrier, end_off, w, r, jr_c, loc_c, g_c,
-            o_c, pos_c)
+            o_c, pos_c, sc)
     mu[:] = 1e-3
     cost(x, pos_c, tf, pf, lam_prior, use_prior, inv_l2, c_old)
     for _ in range(iterations):
@@ -188,19 +198,26 @@ def solve_block(x, tf, pf, tr, basis, basis_t, mean, order, parent, mslot, rest,
                         jac[3 * ef, c, q] += v[1, c, q] * d[2, q] - v[2, c, q] * d[1, q]
                         jac[3 * ef + 1, c, q] += v[2, c, q] * d[0, q] - v[0, c, q] * d[2, q]
                         jac[3 * ef + 2, c, q] += v[0, c, q] * d[1, q] - v[1, c, q] * d[0, q]
-        # damped normal equations (sums over the rows in order)
+        # damped normal equations (sums over the rows in order; one row of ``am`` at a time, kept in cache)
         am[:] = 0.0
         bv[:] = 0.0
         for rr in range(3 * e):
-            jr_row = jac[rr]
             for q in range(nq):
                 step[0, q] = tf[rr, q] - pos_c[rr // 3, rr % 3, q]
+            jr_row = jac[rr]
             for i in range(k):
                 for q in range(nq):
                     bv[i, q] += jr_row[i, q] * step[0, q]
-                for j in range(i, k):
+        acc = xn[0]
+        for i in range(k):
+            for j in range(i, k):
+                for q in range(nq):
+                    acc[q] = 0.0
+                for rr in range(3 * e):
                     for q in range(nq):
-                        am[i, j, q] += jr_row[i, q] * jr_row[j, q]
+                        acc[q] += jac[rr, i, q] * jac[rr, j, q]
+                for q in range(nq):
+                    am[i, j, q] = acc[q]
         for i in range(k):
             for q in range(nq):
                 bv[i, q] *= inv_l2
@@ -238,7 +255,7 @@ def solve_block(x, tf, pf, tr, basis, basis_t, mean, order, parent, mslot, rest,
                 xn[i, q] = x[i, q] + (sq if math.isfinite(sq) else 0.0)
         jr_n, loc_n, g_n, o_n, pos_n = new
         forward(xn, basis_t, mean, order, parent, mslot, rest, tr, carrier, end_off, w, r, jr_n, loc_n,
-                g_n, o_n, pos_n)
+                g_n, o_n, pos_n, sc)
         cost(xn, pos_n, tf, pf, lam_prior, use_prior, inv_l2, c_new)
         n_ok = 0
         for q in range(nq):
@@ -277,7 +294,7 @@ def solve_frames(x, tgt, prior, trans, per_frame, basis, basis_t, mean, order, p
           (np.empty((m, 3, 3, LANES)), np.empty((m, 3, 3, LANES)), np.empty((nn, 3, 3, LANES)),
            np.empty((nn, 3, LANES)), np.empty((e, 3, LANES))),
           (np.empty((m, 3, 3, LANES)), np.empty((m, 3, 3, LANES)), np.empty((nn, 3, 3, LANES)),
-           np.empty((nn, 3, LANES)), np.empty((e, 3, LANES))))
+           np.empty((nn, 3, LANES)), np.empty((e, 3, LANES))), np.empty((7, LANES)))
     rest_l = np.empty((nn, 3, 3, LANES))
     for i in range(nn):
         for a in range(3):
@@ -320,12 +337,12 @@ def pose(x, basis_t, mean, out):  # noqa: ANN001
     f, k = x.shape
     n3 = basis_t.shape[1]
     w = np.empty(n3)
-    r = np.empty((3, 3, 1))
+    r = np.empty((3, 3))
     for fi in range(f):
         coords_to_vectors(x[fi], basis_t, w)
         for n in range(n3 // 3):
-            rodrigues1(w[3 * n], w[3 * n + 1], w[3 * n + 2], r, r, 0, False)
-            mul33(mean[n], r[:, :, 0], out[fi, n])
+            rodrigues1(w[3 * n], w[3 * n + 1], w[3 * n + 2], r)
+            mul33(mean[n], r, out[fi, n])
 
 @jit
 def euler_channels(x, basis_t, mean, root_rot, src, ijk, sign, cols, axes, has_axis, scale, out):  # noqa: ANN001
@@ -338,7 +355,7 @@ def euler_channels(x, basis_t, mean, root_rot, src, ijk, sign, cols, axes, has_a
     f, k = x.shape
     n3 = basis_t.shape[1]
     w = np.empty(n3)
-    r = np.empty((3, 3, 1))
+    r = np.empty((3, 3))
     rm = np.empty((3, 3))
     tmp = np.empty((3, 3))
     ang = np.empty(3)
@@ -350,8 +367,8 @@ def euler_channels(x, basis_t, mean, root_rot, src, ijk, sign, cols, axes, has_a
             if sq < 0:
                 rm[:, :] = root_rot[fi]
             else:
-                rodrigues1(w[3 * sq], w[3 * sq + 1], w[3 * sq + 2], r, r, 0, False)
-                mul33(mean[sq], r[:, :, 0], rm)
+                rodrigues1(w[3 * sq], w[3 * sq + 1], w[3 * sq + 2], r)
+                mul33(mean[sq], r, rm)
             for a in range(3):
                 for b in range(3):
                     if not math.isfinite(rm[a, b]):

@@ -18,6 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from mocapz.codecs.correction.compiled import kernels
 from mocapz.codecs.pga import so3
 
 # Prediction stencils for the odd sample at 0 from its neighbours at -3, -1, +1, +3 (in level steps),
@@ -31,6 +32,17 @@ _STENCILS: dict[tuple[bool, bool, bool], tuple[tuple[int, ...], tuple[float, ...
     (True, False, False): ((-3, -1), (-1 / 2, 3 / 2)),
     (False, False, False): ((-1,), (1.0,)),
 }
+
+
+@functools.cache
+def _table() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:data:`_STENCILS` as arrays for the compiled kernel: offsets ``(8, 4)``, weights ``(8, 4)``, tap counts
+    ``(8,)``, indexed by ``4 * (-3 exists) + 2 * (+1 exists) + (+3 exists)``."""
+    offs, wts, taps = np.zeros((8, 4), dtype=np.int64), np.zeros((8, 4)), np.zeros(8, dtype=np.int64)
+    for (l2, r1, r2), (o, w) in _STENCILS.items():
+        key = 4 * l2 + 2 * r1 + r2
+        offs[key, :len(o)], wts[key, :len(w)], taps[key] = o, np.asarray(w), len(o)
+    return offs, wts, taps
 
 
 def n_levels(n: int) -> int:
@@ -142,9 +154,13 @@ def encode_rn(x: np.ndarray, step: float, lod: int) -> tuple[np.ndarray, np.ndar
 
 
 def decode_rn(q: np.ndarray, n: int, step: float, lod: int) -> np.ndarray:
-    """Inverse of :func:`encode_rn`."""
+    """Inverse of :func:`encode_rn` (by the compiled kernel when loaded: the same bits)."""
     recon = np.zeros((n, q.shape[1]))
     recon[0] = q[0] * step
+    kern = kernels(n, "liftkernels") if q.shape[0] == coefficient_rows(n, lod) and q.dtype == np.int64 else None
+    if kern is not None:
+        kern.rn_levels(np.ascontiguousarray(q), recon, n_levels(n), lod, float(step), *_table())
+        return recon
     reader = _Reader(q)
     _pyramid(n, lod, recon, _predict_rn, lambda pos, pred: pred + reader.take(pos.size) * step)
     return recon

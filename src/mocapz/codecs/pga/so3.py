@@ -14,9 +14,10 @@ _EPS = 1e-8
 
 def hat(w: np.ndarray) -> np.ndarray:
     """Skew-symmetric matrices ``(..., 3, 3)`` with ``hat(w) @ v == cross(w, v)``."""
-    z = np.zeros(w.shape[:-1])
-    x, y, t = w[..., 0], w[..., 1], w[..., 2]
-    return np.stack([np.stack([z, -t, y], -1), np.stack([t, z, -x], -1), np.stack([-y, x, z], -1)], -2)
+    k = np.zeros((*w.shape[:-1], 3, 3), dtype=np.result_type(w.dtype, np.float64))
+    k[..., 0, 1], k[..., 0, 2], k[..., 1, 2] = -w[..., 2], w[..., 1], -w[..., 0]
+    k[..., 1, 0], k[..., 2, 0], k[..., 2, 1] = w[..., 2], -w[..., 1], w[..., 0]
+    return k
 
 
 def exp(w: np.ndarray) -> np.ndarray:
