@@ -150,6 +150,26 @@ def test_byte_planes_by_columns_are_the_whole_matrix_planes(integers: np.ndarray
         assert np.array_equal(entropy.zigzag(v), ((v << 1) ^ (v >> 63)).astype(np.uint64))
 
 
+def test_byte_planes_unpack_in_narrow_types_to_the_wide_values(integers: np.ndarray) -> None:
+    """Every byte width (1 to 8), the extremes of each, the real integers: the narrow-type unpacker gives the
+    values and the memory order of the uint64 one (and the zstd stream decodes to the matrix coded)."""
+    q = integers
+    rng = np.random.default_rng(5)
+    cases = [q, q[:, :1], q.T, q * 300, np.zeros((7, 3), np.int64)]
+    for width in range(1, 9):
+        top = (1 << (8 * width - 1)) - 1  # the largest magnitude whose zigzag fits in ``width`` bytes
+        cases.append(np.array([[top, -top - 1 if width < 8 else -top], [0, -1]], dtype=np.int64))
+        cases.append(rng.integers(-top // 2, top // 2, size=(50, 4), dtype=np.int64))
+    for p in cases:
+        rows, cols = p.shape
+        packed = entropy.pack_zigzag_columns(p)
+        old = entropy.unzigzag(entropy.unpack_uint64(packed, rows * cols)).reshape(cols, rows).T.copy()
+        new = entropy.unpack_zigzag_columns(packed, rows, cols)
+        assert new.dtype == np.int64 and new.flags.c_contiguous and np.array_equal(new, old)
+        assert np.array_equal(new, p)
+        assert np.array_equal(entropy.decode_int_matrix(entropy.encode_int_matrix(p, entropy.CODER_ZSTD)), p)
+
+
 @pytest.mark.parametrize("rel", ["cmu/bvh/06_13.bvh", "cmu/asfamc/01_01.amc", "other/bvh/games105/idle.bvh",
                                  "other/bvh/bandai_namco/dataset-1_punch_normal_001.bvh"])
 def test_positions_in_chunks_are_the_whole_clip_positions(rel: str) -> None:
