@@ -106,6 +106,10 @@ def decompress(data: bytes, path: str | Path | None = None, *,
             if shared:
                 raise FormatError(None, f"corrupted .mcz file (sections {sorted(shared)} outside its blocks)")
             return _with_extras(motion, extra_sections, header, start, stop)
+        if (start, stop) != (0, header.frames) and info.decode_window is not None:
+            part = info.decode_window(codec_sections, header, start, stop)
+            if part is not None:  # only what the frames need was decoded
+                return _with_extras(part, extra_sections, header, start, stop)
         motion = info.decode(codec_sections, header)
         if (start, stop) == (0, header.frames):
             return attach(motion, extra_sections)

@@ -45,6 +45,8 @@ CASES: list[tuple[str, str, int, int, str, dict]] = [
     ("bvh_quant", "cmu/bvh/09_06.bvh", 0, 120, "quant", {}),
     ("c3d_quant", "cmu/c3d/01_01.c3d", 0, 60, "quant", {}),
     ("c3d_quant_blocks", "cmu/c3d/01_01.c3d", 0, 90, "quant", {"block": 30}),
+    ("bvh_quant_seek", "cmu/bvh/06_13.bvh", 0, 1100, "quant", {}),  # c.head format 3: seekable streams
+    ("c3d_quant_seek", "cmu/c3d/01_01.c3d", 0, 1100, "quant", {}),
 ]
 
 

@@ -10,13 +10,25 @@ wrote it, so either side can read both kinds when its coder is present.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterator
 from typing import Any
 
 import numpy as np
-import zstandard
 
 from mocapz.errors import FormatError
+from mocapz.format.planes import (  # noqa: F401  (re-exported: the integer streams' public helpers)
+    MAX_COUNT,
+    pack_uint64,
+    pack_zigzag_columns,
+    read_uvarint,
+    safe_zstd_decompress,
+    unpack_uint64,
+    unpack_zigzag_columns,
+    unpack_zigzag_rows,
+    unzigzag,
+    write_uvarint,
+    zigzag,
+    zstd_capacity,
+)
 
 try:  # pragma: no cover - exercised on platforms without wheels
     import constriction
@@ -34,7 +46,6 @@ CODER_RANGE_DELTA = 4  # as CODER_RANGE, quarter-octave scales coded first, as d
 LIMIT = (1 << 15) - 1  # |symbol| < LIMIT coded directly; LIMIT marks an escape
 BLOCK = 256  # rows per scale block
 SPARSE = 0.25  # a matrix with at most this share of non-zeros is also tried as zstd byte planes
-MAX_COUNT = 1 << 31  # most values in one integer stream
 DELTA_LIMIT = 128  # |difference| of two quarter-octave scale codes
 SCALE_STEPS = 8  # scale quantisation: s = 2 ** ((q - 64) / 8)
 QUARTER_BIAS = 32  # CODER_RANGE_DELTA's scales: s = 2 ** ((q - 32) / 4), q in 0 .. QUARTER_TOP
@@ -44,159 +55,6 @@ CHUNK_VALUES = 1 << 16  # values range coded per call of the coder (its per-valu
 
 
 _DELTA_MODEL = constriction.stream.model.QuantizedLaplace(-DELTA_LIMIT, DELTA_LIMIT) if HAVE_CONSTRICTION else None
-
-
-# ---------------------------------------------------------------- varints
-def write_uvarint(value: int) -> bytes:
-    out = bytearray()
-    value = int(value)
-    if value < 0:
-        raise ValueError("uvarint must be non-negative")
-    while True:
-        b = value & 0x7F
-        value >>= 7
-        if value:
-            out.append(b | 0x80)
-        else:
-            out.append(b)
-            return bytes(out)
-
-
-def read_uvarint(buf: bytes | memoryview, pos: int) -> tuple[int, int]:
-    value, shift = 0, 0
-    while True:
-        if pos >= len(buf):
-            raise FormatError(None, "truncated data (varint runs past the end)")
-        b = buf[pos]
-        pos += 1
-        value |= (b & 0x7F) << shift
-        if not b & 0x80:
-            if value >> 64:
-                raise FormatError(None, "corrupted data (varint over 64 bits)")
-            return value, pos
-        shift += 7
-        if shift > 63:
-            raise FormatError(None, "corrupted data (varint too long)")
-
-
-def zigzag(v: np.ndarray) -> np.ndarray:
-    """``(v << 1) ^ (v >> 63)`` as uint64 (same shape and memory order as ``v``), in one new array."""
-    v = np.asarray(v, dtype=np.int64)
-    out = np.left_shift(v, 1, out=np.empty_like(v))
-    out ^= v >> 63
-    return out.view(np.uint64)
-
-
-def unzigzag(u: np.ndarray) -> np.ndarray:
-    u = np.asarray(u, dtype=np.uint64)  # (u >> 1) ^ -(u & 1), both below 2 ** 63: viewed as int64, no casts
-    out = np.right_shift(u, np.uint64(1), out=np.empty(u.shape, np.uint64)).view(np.int64)
-    out ^= np.negative(np.bitwise_and(u, np.uint64(1), out=np.empty(u.shape, np.uint64)).view(np.int64))
-    return out
-
-
-def pack_uint64(values: np.ndarray) -> bytes:
-    """Pack non-negative integers as zstd-compressed byte planes (small-value friendly)."""
-    u = np.ascontiguousarray(values, dtype=np.uint64).ravel()
-    return _pack_planes(lambda: iter([u]), u.size)
-
-
-def pack_zigzag_columns(v: np.ndarray) -> bytes:
-    """``pack_uint64(zigzag(v.T))`` of an int64 matrix ``v`` ``(rows, columns)`` (its columns one after the
-    other), a few columns at a time: no whole-matrix temporaries beside the byte planes."""
-    rows, cols = v.shape
-    step = max(1, CHUNK_VALUES // max(rows, 1))
-    return _pack_planes(lambda: (zigzag(np.ascontiguousarray(v[:, a:a + step].T)).ravel()
-                                 for a in range(0, cols, step)), v.size)
-
-
-def _pack_planes(chunks: Callable[[], Iterator[np.ndarray]], count: int) -> bytes:
-    """The :func:`pack_uint64` stream of the ``count`` uint64 values ``chunks()`` yields (contiguous arrays, asked
-    for twice: their largest, then their bytes): the low bytes of every value, plane by plane, zstd-packed."""
-    top = max((int(c.max()) for c in chunks() if c.size), default=0)
-    nbytes = max(1, (top.bit_length() + 7) // 8)
-    planes = np.empty((nbytes, count), dtype=np.uint8)
-    pos = 0
-    for c in chunks():
-        planes[:, pos:pos + c.size] = c.view(np.uint8).reshape(-1, 8)[:, :nbytes].T
-        pos += c.size
-    body = zstandard.ZstdCompressor(level=19).compress(planes)  # its buffer as it is (no bytes copy)
-    return write_uvarint(count) + bytes([nbytes]) + body
-
-
-def safe_zstd_decompress(data: bytes, limit: int, what: str) -> bytes:
-    """zstd-decompress at most ``limit`` bytes; a frame claiming more is corrupt (FormatError), never a
-    huge allocation."""
-    try:
-        size = zstandard.get_frame_parameters(data).content_size
-    except zstandard.ZstdError as exc:
-        raise FormatError(None, f"corrupted {what} ({exc})") from None
-    if size != zstandard.CONTENTSIZE_UNKNOWN and size > limit:
-        raise FormatError(None, f"corrupted {what} (claims {size} bytes, at most {limit} expected)")
-    try:
-        out = zstandard.ZstdDecompressor().decompress(data, max_output_size=limit)
-    except zstandard.ZstdError as exc:
-        raise FormatError(None, f"corrupted {what} ({exc})") from None
-    return out
-
-
-def zstd_capacity(size: int) -> int:
-    """The most bytes a zstd frame of ``size`` bytes can hold: every block of at most 128 KiB costs at least its
-    3-byte header, so a count claiming more than this is damage, whatever the frame says."""
-    return (size // 3 + 1) << 17
-
-
-def unpack_uint64(buf: bytes, count: int | None = None, *, at_most: int = MAX_COUNT) -> np.ndarray:
-    """Inverse of :func:`pack_uint64`.
-
-    ``count`` is the number of values the caller expects (from the header or an earlier section), else there
-    are at most ``at_most``; a stream claiming anything else is a FormatError before anything is decompressed.
-    """
-    planes = _unpack_planes(buf, count, at_most)
-    nbytes, n = planes.shape
-    full = np.zeros((n, 8), dtype=np.uint8)
-    full[:, :nbytes] = planes.T
-    return full.view(np.uint64).ravel()
-
-
-def unpack_zigzag_columns(buf: bytes, rows: int, cols: int) -> np.ndarray:
-    """Inverse of :func:`pack_zigzag_columns`: the int64 matrix ``(rows, columns)``, equal to
-    ``unzigzag(unpack_uint64(buf, rows * cols)).reshape(cols, rows).T``. The planes are joined, transposed and
-    unzigzagged in the narrowest unsigned type that holds them, and widened once at the end (a few bytes per
-    value moved instead of three passes of eight)."""
-    planes = _unpack_planes(buf, rows * cols, MAX_COUNT)
-    nbytes = planes.shape[0]
-    if nbytes > 4:
-        return unzigzag(unpack_uint64(buf, rows * cols)).reshape(cols, rows).T.copy()
-    kind, signed = (np.uint8, np.int8) if nbytes == 1 else (np.uint16, np.int16) if nbytes == 2 \
-        else (np.uint32, np.int32)
-    u = planes[0].astype(kind)
-    for b in range(1, nbytes):
-        u |= planes[b].astype(kind) << kind(8 * b)
-    u = u.reshape(cols, rows).T
-    # (u >> 1) ^ -(u & 1): below 2 ** (8 nbytes - 1) and 0 or -1, exact in the signed type of the same width
-    v = (u >> kind(1)).view(signed) ^ -(u & kind(1)).view(signed)
-    return v.astype(np.int64, order="C")
-
-
-def _unpack_planes(buf: bytes, count: int | None, at_most: int) -> np.ndarray:
-    """The byte planes ``(bytes per value, values)`` uint8 of a :func:`pack_uint64` stream, its claims checked
-    (:func:`unpack_uint64`)."""
-    n, pos = read_uvarint(buf, 0)
-    if pos >= len(buf):
-        raise FormatError(None, "truncated integer stream")
-    if count is not None and n != count:
-        raise FormatError(None, f"corrupted integer stream ({n} values where {count} are expected)")
-    if n > at_most:
-        raise FormatError(None, f"corrupted integer stream ({n} values, at most {at_most} expected)")
-    nbytes = buf[pos]
-    if not 1 <= nbytes <= 8:
-        raise FormatError(None, "corrupted integer stream (bad byte width)")
-    if n * nbytes > zstd_capacity(len(buf) - pos - 1):
-        raise FormatError(None, f"corrupted integer stream ({n} values cannot fit in {len(buf)} bytes)")
-    raw = safe_zstd_decompress(bytes(buf[pos + 1 :]), n * nbytes, "integer stream")
-    if len(raw) != n * nbytes:
-        raise FormatError(None, "corrupted integer stream (wrong length)")
-    return np.frombuffer(raw, dtype=np.uint8).reshape(nbytes, n)
 
 
 # ---------------------------------------------------------------- block scales
@@ -252,12 +110,12 @@ def _block_scale(q: np.ndarray, steps: int = SCALE_STEPS, bias: int = 64) -> np.
     return 2.0 ** ((q.astype(np.float64) - bias) / steps)
 
 
-def _encode_values(enc: Any, v: np.ndarray, scale: np.ndarray) -> bytes:
+def _encode_values(enc: Any, v: np.ndarray, scale: np.ndarray, row0: int = 0) -> bytes:
     """Range code the values of ``v`` ``(rows, columns)`` (row by row, clipped to the model's range; the escape
     mark where beyond) into ``enc`` under the Laplace scales ``scale`` ``(blocks, columns)`` of their blocks of
-    :data:`BLOCK` rows, :data:`CHUNK_VALUES` values per call (the coder takes one array per value and
-    parameter: made a chunk at a time they stay small; the stream is the one of a single call). Returns the
-    packed escaped values (b"" without any)."""
+    :data:`BLOCK` rows (``v``'s first row being row ``row0`` of the matrix the blocks count), :data:`CHUNK_VALUES`
+    values per call (the coder takes one array per value and parameter: made a chunk at a time they stay small;
+    the stream is the one of a single call). Returns the packed escaped values (b"" without any)."""
     rows, cols = v.shape
     model = constriction.stream.model.QuantizedLaplace(-LIMIT, LIMIT)
     step = max(1, CHUNK_VALUES // max(cols, 1))
@@ -265,7 +123,8 @@ def _encode_values(enc: Any, v: np.ndarray, scale: np.ndarray) -> bytes:
     for a in range(0, rows, step):
         part = v[a:a + step]
         sym = np.clip(part, -LIMIT, LIMIT).astype(np.int32).ravel()
-        enc.encode(sym, model, np.zeros(sym.size), scale[np.arange(a, a + len(part)) // BLOCK].ravel())
+        blocks = np.arange(row0 + a, row0 + a + len(part)) // BLOCK
+        enc.encode(sym, model, np.zeros(sym.size), scale[blocks].ravel())
         escapes.append(part[np.abs(part) >= LIMIT])
     esc = np.concatenate(escapes)
     return pack_uint64(zigzag(esc)) if esc.size else b""
@@ -311,16 +170,36 @@ def encode_int_matrix(values: np.ndarray, coder: int | None = None) -> bytes:
 def _encode_delta(v: np.ndarray, head: bytes) -> bytes:
     """The CODER_RANGE_DELTA stream of ``v`` ``(rows, columns)``: the scale codes' differences (in block, then
     column order, from QUARTER_BIAS) and the values, in one range-coded body."""
-    q = _quarter_scales(v)
-    diffs = np.diff(q.ravel(), prepend=QUARTER_BIAS)
-    pick = int(np.argmin([_laplace_bits(np.abs(diffs)[:, None].astype(np.float64), np.array([d]))[0]
-                          for d in DELTA_SCALES]))
+    q, pick = _delta_scales(v)
     enc = constriction.stream.queue.RangeEncoder()
-    enc.encode(diffs.astype(np.int32), _DELTA_MODEL, np.zeros(diffs.size), np.full(diffs.size, DELTA_SCALES[pick]))
+    _encode_scale_codes(enc, q, pick)
     esc = _encode_values(enc, v, _block_scale(q, 4, QUARTER_BIAS))
     body = enc.get_compressed().tobytes()
     return bytes([CODER_RANGE_DELTA]) + head + bytes([pick]) + write_uvarint(len(esc)) + esc \
         + write_uvarint(len(body)) + body
+
+
+def _delta_scales(v: np.ndarray) -> tuple[np.ndarray, int]:
+    """CODER_RANGE_DELTA's scale codes ``(blocks, columns)`` of ``v`` and the pick of the Laplace scale their
+    differences are coded with (an index into :data:`DELTA_SCALES`)."""
+    q = _quarter_scales(v)
+    diffs = np.abs(np.diff(q.ravel(), prepend=QUARTER_BIAS))[:, None].astype(np.float64)
+    return q, int(np.argmin([_laplace_bits(diffs, np.array([d]))[0] for d in DELTA_SCALES]))
+
+
+def _encode_scale_codes(enc: Any, q: np.ndarray, pick: int) -> None:
+    """Range code the scale codes ``q`` as differences (block, then column order, from QUARTER_BIAS)."""
+    diffs = np.diff(q.ravel(), prepend=QUARTER_BIAS)
+    enc.encode(diffs.astype(np.int32), _DELTA_MODEL, np.zeros(diffs.size), np.full(diffs.size, DELTA_SCALES[pick]))
+
+
+def _decode_scale_codes(dec: Any, pick: int, nb: int, cols: int) -> np.ndarray:
+    """Inverse of :func:`_encode_scale_codes`: the codes ``(nb, cols)``, range checked (FormatError)."""
+    diffs = dec.decode(_DELTA_MODEL, np.zeros(nb * cols), np.full(nb * cols, DELTA_SCALES[pick]))
+    q = np.cumsum(diffs.astype(np.int64)) + QUARTER_BIAS
+    if q.size and (q.min() < 0 or q.max() > QUARTER_TOP):
+        raise FormatError(None, "corrupted integer stream (scales)")
+    return q.reshape(nb, cols)
 
 
 def decode_int_matrix(data: bytes, shape: tuple[int, int] | None = None) -> np.ndarray:
@@ -385,14 +264,17 @@ def _escapes_and_body(buf: memoryview, pos: int) -> tuple[bytes, bytes]:
     return esc_bytes, body
 
 
-def _decode_values(dec: Any, scale: np.ndarray, rows: int, cols: int) -> tuple[np.ndarray, np.ndarray]:
-    """The values ``(rows, cols)`` under the scales ``scale`` ``(blocks, cols)`` of their :data:`BLOCK` rows, and
-    the flat positions of their escape marks; :data:`CHUNK_VALUES` values per call, as coded (small arrays)."""
+def _decode_values(dec: Any, scale: np.ndarray, rows: int, cols: int,
+                   row0: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    """The values ``(rows, cols)`` under the scales ``scale`` ``(blocks, cols)`` of their :data:`BLOCK` rows (the
+    first being row ``row0`` of the matrix the blocks count), and the flat positions of their escape marks;
+    :data:`CHUNK_VALUES` values per call, as coded (small arrays)."""
     model, out, marks = constriction.stream.model.QuantizedLaplace(-LIMIT, LIMIT), np.empty((rows, cols), np.int64), []
     step, means = max(1, CHUNK_VALUES // cols), np.zeros(min(rows, max(1, CHUNK_VALUES // cols)) * cols)
     for a in range(0, rows, step):
         part = out[a:a + step]
-        sym = dec.decode(model, means[:part.size], scale[np.arange(a, a + len(part)) // BLOCK].ravel())
+        blocks = np.arange(row0 + a, row0 + a + len(part)) // BLOCK
+        sym = dec.decode(model, means[:part.size], scale[blocks].ravel())
         part[...] = sym.reshape(part.shape)
         marks.append(np.flatnonzero(np.abs(sym) >= LIMIT) + a * cols)
     return out, np.concatenate(marks)
@@ -415,11 +297,8 @@ def _decode_delta(buf: memoryview, pos: int, rows: int, cols: int, nb: int) -> n
     esc_bytes, body = _escapes_and_body(buf, pos + 1)
     try:
         dec = constriction.stream.queue.RangeDecoder(np.frombuffer(body, dtype=np.uint32).copy())
-        diffs = dec.decode(_DELTA_MODEL, np.zeros(nb * cols), np.full(nb * cols, DELTA_SCALES[pick]))
-        q = np.cumsum(diffs.astype(np.int64)) + QUARTER_BIAS
-        if q.min() < 0 or q.max() > QUARTER_TOP:
-            raise FormatError(None, "corrupted integer stream (scales)")
-        sym, marks = _decode_values(dec, _block_scale(q.reshape(nb, cols), 4, QUARTER_BIAS), rows, cols)
+        q = _decode_scale_codes(dec, pick, nb, cols)
+        sym, marks = _decode_values(dec, _block_scale(q, 4, QUARTER_BIAS), rows, cols)
     except FormatError:
         raise
     except Exception as exc:  # constriction raises plain exceptions on corrupt input

@@ -29,7 +29,7 @@ from mocapz.codecs.baselines.common import (
     uvarints,
     values_of,
 )
-from mocapz.codecs.correction.wrap import corrected
+from mocapz.codecs.correction.wrap import apply_window, corrected
 from mocapz.codecs.options import Option
 from mocapz.codecs.ratesearch import check_target, coarsest_meeting
 from mocapz.codecs.target import TARGET_OPTIONS, Target
@@ -144,4 +144,5 @@ def decode(sections: dict[str, bytes], header: ClipHeader) -> AnyMotion:
 
 ENCODE, DECODE = corrected(encode, decode, "pca", OPTIONS)
 INFO = CodecInfo(name="pca", version=VERSION, kinds=("skeleton", "markers"), encode=ENCODE, decode=DECODE,
-                 options=OPTIONS, summary="baseline: one PCA of the whole clip (the pattern paper's Fig. 9)")
+                 options=OPTIONS, decode_window=apply_window,
+                 summary="baseline: one PCA of the whole clip (the pattern paper's Fig. 9)")

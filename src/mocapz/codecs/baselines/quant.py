@@ -26,7 +26,7 @@ import numpy as np
 
 from mocapz.codecs import CodecInfo
 from mocapz.codecs.baselines.common import finish, gaps_bytes, gaps_from, layout_columns, values_of
-from mocapz.codecs.correction.wrap import corrected
+from mocapz.codecs.correction.wrap import apply_window, corrected
 from mocapz.codecs.ratesearch import coarsest_meeting
 from mocapz.codecs.target import TARGET_OPTIONS, Target
 from mocapz.errors import FormatError
@@ -210,7 +210,8 @@ def track_bits(sections: dict[str, bytes]) -> np.ndarray:
 # file tried (CMU BVH, ASF/AMC, Bandai-Namco, C3D, TRC): the model is the base only with settings the user gives
 ENCODE, DECODE = corrected(encode, decode, "quant", OPTIONS, model_base=False)
 INFO = CodecInfo(name="quant", version=VERSION, kinds=("skeleton", "markers"), encode=ENCODE, decode=DECODE,
-                 options=OPTIONS, summary="baseline: per-track quantisation of every frame under a position "
+                 options=OPTIONS, decode_window=apply_window,
+                 summary="baseline: per-track quantisation of every frame under a position "
                                           "error bound (as ACL and game engines do): with a target, the correction "
                                           "layer's closed-loop lifting alone; with a step, uniform steps corrected")
 

@@ -35,7 +35,7 @@ from mocapz.codecs.baselines.common import (
 )
 from mocapz.codecs.baselines.pca import column_scale, components_for, fit, scale_of
 from mocapz.codecs.baselines.subsample import interpolate, key_frames
-from mocapz.codecs.correction.wrap import corrected
+from mocapz.codecs.correction.wrap import apply_window, corrected
 from mocapz.codecs.options import Option
 from mocapz.codecs.ratesearch import check_target, coarsest_meeting
 from mocapz.codecs.target import TARGET_OPTIONS, Target
@@ -158,4 +158,5 @@ def decode(sections: dict[str, bytes], header: ClipHeader) -> AnyMotion:
 
 ENCODE, DECODE = corrected(encode, decode, "segpca", OPTIONS)
 INFO = CodecInfo(name="segpca", version=VERSION, kinds=("skeleton", "markers"), encode=ENCODE, decode=DECODE,
-                 options=OPTIONS, summary="baseline: PCA per segment, key-frame coefficients (Liu & McMillan 2006)")
+                 options=OPTIONS, decode_window=apply_window,
+                 summary="baseline: PCA per segment, key-frame coefficients (Liu & McMillan 2006)")

@@ -26,7 +26,7 @@ from mocapz.codecs.baselines.common import (
     uvarints,
     values_of,
 )
-from mocapz.codecs.correction.wrap import corrected
+from mocapz.codecs.correction.wrap import apply_window, corrected
 from mocapz.codecs.options import Option
 from mocapz.codecs.ratesearch import check_target, coarsest_meeting
 from mocapz.codecs.target import TARGET_OPTIONS, Target
@@ -105,5 +105,6 @@ def decode(sections: dict[str, bytes], header: ClipHeader) -> AnyMotion:
 
 ENCODE, DECODE = corrected(encode, decode, "subsample", OPTIONS)
 INFO = CodecInfo(name="subsample", version=VERSION, kinds=("skeleton", "markers"), encode=ENCODE,
-                 decode=DECODE, options=OPTIONS,
+                 decode=DECODE, options=OPTIONS, decode_window=apply_window,
+
                  summary="baseline: every N-th frame kept, cubic spline in between (the pattern paper's Fig. 9)")

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from mocapz._memory import release_free_memory
-from mocapz.codecs.correction import bounds, context, feet, lifting
+from mocapz.codecs.correction import bounds, context, feet, lifting, window
 from mocapz.codecs.correction.chain import Chain
 from mocapz.codecs.correction.compiled import kernels
 from mocapz.codecs.target import ErrorMetric, Errors
@@ -284,10 +284,12 @@ def fit(clip: Clip, base: np.ndarray, e: float, relax_by: float = bounds.RELAX, 
     errors, added = clip.metric.of_positions(pos), clip.added_energy(pos)
     del pos  # the integers are packed without it (the entropy coders' work space comes on top)
     release_free_memory()  # the rounds' freed arrays, not beside zstd's work space (mmap-ed, level 19)
+    seek = window.seekable(frames)  # a long clip: its streams laid out for random access (c.head format 3)
     sections = {
         "c.codes": pack_uint64(codes.astype(np.uint64)),
-        "c.levels": encode_int_matrix(np.diff(levels, axis=0, prepend=0)),
-        "c.res": lifting.pack(q, frames, depth),
+        "c.levels": window.pack_levels(levels, frames, depth) if seek
+        else encode_int_matrix(np.diff(levels, axis=0, prepend=0)),
+        "c.res": window.pack_res(q, frames, depth) if seek else lifting.pack(q, frames, depth),
     }
     size = sum(len(v) + 8 for v in sections.values())
     return Correction(sections, size, errors, e, jit, added, depth, settled)

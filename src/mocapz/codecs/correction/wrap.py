@@ -19,11 +19,12 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
 
-from mocapz.codecs.correction import bounds, context, lifting
+from mocapz.codecs.correction import bounds, context, lifting, window
 from mocapz.codecs.correction.fit import Clip, value_matrix
 from mocapz.codecs.correction.search import search_bases
 from mocapz.codecs.gaps import pack_mask, unpack_mask
@@ -41,6 +42,7 @@ Decoder = Callable[[Sections, ClipHeader], AnyMotion]
 DEFAULT_ERROR_CM = 1.0  # the default target (codecs.target.DEFAULT_TARGET_TEXT); 1/170 of the body height
 # when the length unit is unknown
 FORMAT = 2  # 1: every lifting level within the whole tolerance; 2: a shrink factor per level (c.head)
+SEEKABLE = 3  # 2's integers with the streams laid out for random access (clips of window.SEEK_MIN frames and more)
 BASE_NONE, BASE_MODEL = 0, 1
 ROWS = 512  # rows per chunk of the wrap-around pass
 
@@ -131,7 +133,8 @@ def corrected(encode: Encoder, decode: Decoder, codec: str, declared: tuple[Opti
                               f"{cor.errors.distortion_pct:.4g} %, max error {cor.errors.max_error:.4g} file units "
                               "(the lossless codec gives the values back exactly)")
         context.spend(clip.whole, cor.added)  # a block: what it used of the clip's jitter allowance
-        head = write_uvarint(FORMAT) + write_uvarint(kind) + write_uvarint(cor.depth) \
+        fmt = SEEKABLE if window.seekable(motion.n_frames) else FORMAT  # as the fit laid the streams out
+        head = write_uvarint(fmt) + write_uvarint(kind) + write_uvarint(cor.depth) \
             + write_uvarint(shrink_code(clip.shrink))
         return {**base_sections, "c.head": head, **cor.sections}
 
@@ -159,25 +162,21 @@ def _refuse_below_precision(clip: Clip, target: Target, codec: str) -> None:
 def apply(sections: Sections, header: ClipHeader, decode: Decoder) -> AnyMotion:
     """Decode the model (or a zero base) and add the coded correction."""
     try:
-        head = sections["c.head"]
-        fmt, pos = read_uvarint(head, 0)
-        kind, pos = read_uvarint(head, pos)
-        levels, pos = read_uvarint(head, pos)
-        code, pos = read_uvarint(head, pos) if fmt == 2 else (100, pos)
-        if fmt not in (1, 2) or kind not in (BASE_NONE, BASE_MODEL) or levels > 16 or not 1 <= code <= 100 \
-                or pos != len(head):
-            raise FormatError(None, "corrupted correction header")
+        fmt, kind, levels, code = _head(sections["c.head"])
         groups = group_of(header)
         frames, cols = header.frames, groups.size
+        codes = _codes(sections["c.codes"], cols)
         # every stream's shape is checked against the header before a frames x columns array is made
-        codes = unpack_uint64(sections["c.codes"], cols)
-        if np.any(codes > bounds.FREE):
-            raise FormatError(None, "corrupted correction codes")
-        dlev = decode_int_matrix(sections["c.levels"], (frames, int(groups.max(initial=-1)) + 1))
-        q = lifting.read(sections["c.res"], frames, cols, levels)
-        lev = np.cumsum(dlev, axis=0)
-        if lev.size and (lev.min() < 0 or lev.max() > 60):
-            raise FormatError(None, "corrupted correction levels")
+        n_groups = int(groups.max(initial=-1)) + 1
+        if fmt == SEEKABLE:
+            lev = window.read_levels(sections["c.levels"], frames, n_groups)[1]
+            q = window.read_res(sections["c.res"], frames, cols, levels)
+        else:
+            dlev = decode_int_matrix(sections["c.levels"], (frames, n_groups))
+            q = lifting.read(sections["c.res"], frames, cols, levels)
+            lev = np.cumsum(dlev, axis=0)
+            if lev.size and (lev.min() < 0 or lev.max() > 60):
+                raise FormatError(None, "corrupted correction levels")
         if kind == BASE_MODEL:
             base_motion = decode({k: v for k, v in sections.items() if not k.startswith("c.")}, header)
         else:
@@ -188,6 +187,58 @@ def apply(sections: Sections, header: ClipHeader, decode: Decoder) -> AnyMotion:
     halves = 2.0 ** (-np.arange(int(lev.max(initial=0)) + 1, dtype=np.float64) / 2.0)
     # tol = tol_of(codes)[None, :] * halves[lev][:, groups], read from the table by the compiled kernel
     y = lifting.decode_table(q, bounds.tol_of(codes), halves, lev, groups, levels, code / 100.0)
+    return _add(base_motion, y, header)
+
+
+def apply_window(sections: Sections, header: ClipHeader, start: int, stop: int) -> AnyMotion | None:
+    """Frames ``[start, stop)`` of a clip coded with the seekable layout on a zero base, decoding only the chunks
+    they need (the values of a full decode, to the bit), or None where the whole clip must be decoded (another
+    layout, a model base, a marker quantum the window alone cannot settle)."""
+    if "c.head" not in sections:
+        return None
+    try:
+        fmt, kind, levels, code = _head(sections["c.head"])
+        if fmt != SEEKABLE or kind != BASE_NONE:
+            return None
+        groups = group_of(header)
+        codes = _codes(sections["c.codes"], groups.size)
+        halves = 2.0 ** (-np.arange(61, dtype=np.float64) / 2.0)  # every level's value (the same numbers)
+        y = window.decode_window(sections["c.res"], sections["c.levels"], bounds.tol_of(codes), halves, groups,
+                                 header.frames, levels, code / 100.0, start, stop)
+        part = replace(header, frames=stop - start)
+        gaps = sections.get("c.gaps")
+        mask = None if gaps is None else unpack_mask(gaps, (header.frames, len(header.labels)))[start:stop]
+    except KeyError as exc:
+        raise FormatError(None, f"corrupted correction (missing section {exc})") from None
+    out = _add(zero_motion(part, None, mask), y, part)
+    if isinstance(out, MarkerMotion) and out.quantum is not None:
+        return None  # the full clip may be off the quantum where this window is on it
+    return out
+
+
+def _head(head: bytes) -> tuple[int, int, int, int]:
+    """``c.head``'s format, base kind, lifting levels and shrink code (hundredths)."""
+    fmt, pos = read_uvarint(head, 0)
+    kind, pos = read_uvarint(head, pos)
+    levels, pos = read_uvarint(head, pos)
+    code, pos = read_uvarint(head, pos) if fmt >= 2 else (100, pos)
+    if fmt > SEEKABLE:
+        raise FormatError(None, f"correction format {fmt} is newer than this mocapz reads (up to {SEEKABLE})")
+    if fmt < 1 or kind not in (BASE_NONE, BASE_MODEL) or levels > 16 or not 1 <= code <= 100 or pos != len(head):
+        raise FormatError(None, "corrupted correction header")
+    return fmt, kind, levels, code
+
+
+def _codes(data: bytes, cols: int) -> np.ndarray:
+    codes = unpack_uint64(data, cols)
+    if np.any(codes > bounds.FREE):
+        raise FormatError(None, "corrupted correction codes")
+    return codes
+
+
+def _add(base_motion: AnyMotion, y: np.ndarray, header: ClipHeader) -> AnyMotion:
+    """The base motion plus the decoded correction ``y`` ``(frames, columns)`` (rotations wrapped into their
+    period where the correction moved them)."""
     if not y.any():
         return base_motion
     if isinstance(base_motion, Motion):
@@ -227,12 +278,14 @@ def group_of(header: ClipHeader) -> np.ndarray:
     return np.repeat(np.arange(len(header.labels)), 3)
 
 
-def zero_motion(header: ClipHeader, gaps: bytes | None) -> AnyMotion:
-    """A motion of zeros (NaN on the stored gaps) to add the correction to."""
+def zero_motion(header: ClipHeader, gaps: bytes | None, mask: np.ndarray | None = None) -> AnyMotion:
+    """A motion of zeros (NaN on the stored gaps, or where ``mask`` ``(frames, markers)`` is set) to add the
+    correction to."""
     if header.skeleton is not None:
         return header.motion(np.zeros((header.frames, header.n_columns)))
     pos = np.zeros(header.value_shape)
     if gaps is not None:
         mask = unpack_mask(gaps, (header.frames, len(header.labels)))
+    if mask is not None:
         pos[mask] = math.nan
     return header.motion(pos)

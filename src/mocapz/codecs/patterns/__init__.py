@@ -10,7 +10,7 @@ from __future__ import annotations
 from typing import Any
 
 from mocapz.codecs import CodecInfo
-from mocapz.codecs.correction.wrap import corrected, given_settings, native_targets, strip_targets
+from mocapz.codecs.correction.wrap import apply_window, corrected, given_settings, native_targets, strip_targets
 from mocapz.codecs.patterns.decode import decode
 from mocapz.codecs.patterns.encode import encode
 from mocapz.codecs.patterns.options import OPTIONS
@@ -33,6 +33,7 @@ ENCODE, DECODE = corrected(encode, decode, "patterns", OPTIONS, _base_options)
 
 INFO = CodecInfo(
     name="patterns",
+    decode_window=apply_window,
     version=VERSION,
     kinds=("skeleton", "markers"),
     encode=ENCODE,

@@ -1,0 +1,224 @@
+"""The correction's streams laid out for random access, and the decoding of a window of frames from them.
+
+A clip of at least :data:`SEEK_MIN` frames (format 3 of ``c.head``) codes its integers as
+:func:`~.lifting.quantise` makes them (the same values as format 2), but packed so that frames ``[a, b)`` decode
+from a few chunks of :data:`SEEK_CHUNK` frames (:mod:`mocapz.format.seekable`):
+
+* ``c.res``: a layout byte, then streams each after its uvarint length: the coarse knots as running values
+  (chunks of ``SEEK_CHUNK / 2 ** depth`` knots), then the details, all levels in one stream or one stream a
+  level (the smaller), cut into segments where each level's samples enter a new chunk of frames;
+* ``c.levels``: the largest tightening level on the knots of every group (uvarints: the knots' quantisation
+  step, which format 2 takes from every knot's tolerance), then the levels ``(frames, groups)`` as running
+  values (chunks of :data:`SEEK_CHUNK` frames).
+
+A window needs, at lifting level ``l`` (spacing ``h = 2 ** l``), the samples within ``3 h`` of the samples it
+needs at the level below (the 4-point Deslauriers-Dubuc filter's reach): about ``3 * 2 ** depth`` frames on each
+side in all. :func:`decode_window` inverse-lifts only those, with the same float operations in the same order as
+:func:`~.lifting.decode`: the window's values are the full decode's to the bit.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from mocapz.codecs.correction.lifting import BIG, STEP, level_factor, plan, row_groups
+from mocapz.errors import FormatError
+from mocapz.format.entropy import read_uvarint, write_uvarint
+from mocapz.format.seekable import decode_segments, encode_segments, pack_running, read_running
+
+SEEK_CHUNK = 512  # frames per chunk of the seekable streams
+SEEK_MIN = 2 * SEEK_CHUNK  # clips from this many frames are coded seekable (shorter ones decode whole quickly)
+LEVEL_CHUNK = 128  # frames per chunk of the levels' running values (small numbers: a chunk's first row costs little)
+SEGMENT_VALUES = 4096  # values per segment of a detail stream (a segment costs its coder's flush and two lengths,
+# about 8 bytes: under 1 % of a dense stream's 4,096 values; a seek decodes up to that many before its rows)
+ONE_STREAM, STREAM_A_LEVEL = 0, 1  # c.res layouts of the details
+
+
+def seekable(frames: int) -> bool:
+    """Whether a clip of ``frames`` frames is coded with the seekable layout (``c.head`` format 3)."""
+    return frames >= SEEK_MIN
+
+
+def _knot_chunk(depth: int, frames: int) -> int:
+    return max(1, SEEK_CHUNK >> plan(frames, depth)[0])
+
+
+def _detail_starts(frames: int, depth: int, split: int, cols: int) -> list[list[int]]:
+    """The segment starts of every detail stream of layout ``split``: every :data:`SEGMENT_VALUES` values (a
+    seek decodes at most that much before the rows it needs, in a range-coded stream)."""
+    step = max(1, -(-SEGMENT_VALUES // max(cols, 1)))
+    return [list(range(0, max(rows, 1), step)) for rows in _detail_rows(frames, depth, split)]
+
+
+def _detail_rows(frames: int, depth: int, split: int) -> list[int]:
+    rows = row_groups(frames, depth)[1:]
+    return rows if split == STREAM_A_LEVEL else [sum(rows)]
+
+
+def pack_res(q: np.ndarray, frames: int, depth: int) -> bytes:
+    """The seekable ``c.res`` of :func:`~.lifting.quantise`'s integers ``q`` ``(padded frames, columns)``."""
+    if not q.shape[1]:
+        return b""
+    rows, cols = row_groups(frames, depth), q.shape[1]
+    knots = write_uvarint_bytes(pack_running(np.cumsum(q[:rows[0]], axis=0), _knot_chunk(depth, frames)))
+    best = None
+    for split in (ONE_STREAM, STREAM_A_LEVEL):
+        out, pos = bytearray([split]) + knots, rows[0]
+        for n, starts in zip(_detail_rows(frames, depth, split), _detail_starts(frames, depth, split, cols),
+                             strict=True):
+            out += write_uvarint_bytes(encode_segments(q[pos:pos + n], starts))
+            pos += n
+        best = out if best is None or len(out) < len(best) else best
+    return bytes(best)
+
+
+def write_uvarint_bytes(b: bytes) -> bytes:
+    return write_uvarint(len(b)) + b
+
+
+def _streams(data: bytes, count: int) -> tuple[int, list[bytes]]:
+    """The layout byte and ``count`` length-prefixed streams of a seekable ``c.res``."""
+    if not data or data[0] not in (ONE_STREAM, STREAM_A_LEVEL):
+        raise FormatError(None, "corrupted correction stream (layout)")
+    out, pos = [], 1
+    for _ in range(count):
+        size, pos = read_uvarint(data, pos)
+        if pos + size > len(data):
+            raise FormatError(None, "corrupted correction stream (part length)")
+        out.append(data[pos:pos + size])
+        pos += size
+    if pos != len(data):
+        raise FormatError(None, "corrupted correction stream (trailing bytes)")
+    return data[0], out
+
+
+def read_res(data: bytes, frames: int, cols: int, depth: int) -> np.ndarray:
+    """All the integers of a seekable ``c.res`` in :func:`~.lifting.quantise`'s order (what format 2's
+    :func:`~.lifting.read` gives)."""
+    if cols == 0:
+        return np.zeros((0, 0), dtype=np.int64)
+    rows = row_groups(frames, depth)
+    split = data[0] if data else -1
+    _, parts = _streams(data, 1 + len(_detail_rows(frames, depth, split if split in (0, 1) else 0)))
+    knots = read_running(parts[0], (rows[0], cols), _knot_chunk(depth, frames))
+    out = [np.diff(knots, axis=0, prepend=0)]
+    for part, n, starts in zip(parts[1:], _detail_rows(frames, depth, split),
+                               _detail_starts(frames, depth, split, cols), strict=True):
+        segs = decode_segments(part, (n, cols), starts)
+        out += [segs[i] for i in range(len(starts))]
+    return np.concatenate(out)
+
+
+def pack_levels(levels: np.ndarray, frames: int, depth: int) -> bytes:
+    """The seekable ``c.levels`` of the tightening levels ``(frames, groups)``."""
+    lv, n = plan(frames, depth)
+    knot_rows = np.minimum(np.arange(0, n, 1 << lv), frames - 1)
+    top = levels[knot_rows].max(axis=0) if levels.size else np.zeros(levels.shape[1], dtype=np.int64)
+    return b"".join(write_uvarint(int(t)) for t in top) + pack_running(levels, LEVEL_CHUNK)
+
+
+def read_levels(data: bytes, frames: int, groups: int, a: int = 0, b: int | None = None
+                ) -> tuple[np.ndarray, np.ndarray]:
+    """The largest level on the knots ``(groups,)`` and the levels of frames ``[a, b)`` ``(b - a, groups)``."""
+    top, pos = [], 0
+    for _ in range(groups):
+        value, pos = read_uvarint(data, pos)
+        top.append(value)
+    lev = read_running(data[pos:], (frames, groups), LEVEL_CHUNK, a, frames if b is None else b)
+    top_arr = np.array(top, dtype=np.int64)
+    if (lev.size and (lev.min() < 0 or lev.max() > 60)) or (top_arr.size and top_arr.max() > 60):
+        raise FormatError(None, "corrupted correction levels")
+    return top_arr, lev
+
+
+def reach(frames: int, depth: int, a: int, b: int) -> list[tuple[int, int]]:
+    """Per lifting level ``l`` (0: the finest) up to the knots' (``depth`` levels: ``depth + 1`` entries), the
+    padded positions ``[lo, hi]`` whose samples frames ``[a, b)`` need."""
+    lv, n = plan(frames, depth)
+    lo, hi, out = a, b - 1, [(a, b - 1)]
+    for level in range(lv):
+        h = 1 << level
+        lo, hi = max(0, lo - 3 * h), min(n - 1, hi + 3 * h)
+        out.append((lo, hi))
+    return out
+
+
+def decode_window(data: bytes, lev_data: bytes, tol_col: np.ndarray, halves: np.ndarray, groups: np.ndarray,
+                  frames: int, depth: int, shrink: float, a: int, b: int) -> np.ndarray:
+    """The decoded residual of frames ``[a, b)`` ``(b - a, columns)``, from a seekable ``c.res`` (``data``) and
+    ``c.levels`` (``lev_data``), the tolerances ``tol_col[c] * halves[level]`` (capped at BIG) of
+    :func:`~.lifting.decode_table`: the rows of the full decode, to the bit."""
+    cols = groups.size
+    lv, n = plan(frames, depth)
+    span = 1 << lv
+    ranges = reach(frames, depth, a, b)
+    k_lo, k_hi = ranges[lv][0] // span, -(-ranges[lv][1] // span)  # the knots around the coarsest reach
+    lo, hi = k_lo * span, k_hi * span  # the window of padded positions worked on
+    top, lev = read_levels(lev_data, frames, int(groups.max(initial=-1)) + 1, min(lo, frames - 1),
+                           min(hi, frames - 1) + 1)
+    split = data[0] if data else -1
+    _, parts = _streams(data, 1 + len(_detail_rows(frames, depth, split if split in (0, 1) else 0)))
+    rows = row_groups(frames, depth)
+    knots = read_running(parts[0], (rows[0], cols), _knot_chunk(depth, frames), k_lo, k_hi + 1)
+    y = np.zeros((hi - lo + 1, cols))
+    kmin = np.minimum(tol_col * halves[top[groups]], BIG)
+    y[::span] = knots * (2.0 * level_factor(lv, shrink) * kmin)
+
+    def tol_at(pos: np.ndarray) -> np.ndarray:  # (samples, columns) the capped tolerances at padded positions
+        r = np.minimum(pos, frames - 1) - min(lo, frames - 1)
+        return np.minimum(tol_col[None, :] * halves[lev[r]][:, groups], BIG)
+
+    details = _details(parts[1:], frames, depth, split, cols, ranges)
+    for level in range(lv - 1, -1, -1):
+        h = 1 << level
+        t0, t1, q = details[level]
+        if t1 < t0:
+            continue
+        t = np.arange(t0, t1 + 1)
+        i = h + 2 * h * t
+        m = len(range(h, n - 1, 2 * h))
+        top4 = min(m, (n - 1 - 4 * h) // (2 * h) + 1)
+        left, right = y[i - h - lo], y[i + h - lo]
+        pred = 0.5 * (left + right)
+        four = (t >= 1) & (t < top4)
+        if four.any():
+            j = i[four] - lo
+            pred[four] = (9.0 * (left[four] + right[four]) - (y[j - 3 * h] + y[j + 3 * h])) / 16.0
+        y[i - lo] = pred + q * (STEP * level_factor(level, shrink) * tol_at(i))
+    return y[a - lo:b - lo]
+
+
+def _details(parts: list[bytes], frames: int, depth: int, split: int, cols: int,
+             ranges: list[tuple[int, int]]) -> dict[int, tuple[int, int, np.ndarray]]:
+    """Per level, the first and last sample index ``t`` within its reach and their integers ``(samples,
+    columns)``, decoding only the segments holding them."""
+    lv = plan(frames, depth)[0]
+    counts = row_groups(frames, depth)[1:]
+    offsets = np.concatenate([[0], np.cumsum(counts)]).astype(int)
+    want: list[tuple[int, int, int]] = []  # (level, t0, t1)
+    for k, level in enumerate(range(lv - 1, -1, -1)):
+        h = 1 << level
+        lo, hi = ranges[level]
+        t0, t1 = max(0, -(-(lo - h) // (2 * h))), min(counts[k] - 1, (hi - h) // (2 * h))
+        want.append((level, t0, t1))
+    streams = _detail_starts(frames, depth, split, cols)
+    spans: dict[int, list[tuple[int, int, int]]] = {}  # stream -> (level, first row, stop row) in it
+    for k, (level, t0, t1) in enumerate(want):
+        if t1 >= t0:
+            s, base = (k, 0) if split == STREAM_A_LEVEL else (0, int(offsets[k]))
+            spans.setdefault(s, []).append((level, base + t0, base + t1 + 1))
+    out = {level: (t0, t1, np.zeros((0, cols), dtype=np.int64)) for level, t0, t1 in want}
+    for s, rows_wanted in spans.items():  # each stream decoded once, its segments the levels' rows lie in
+        starts = streams[s]
+        rows = counts[s] if split == STREAM_A_LEVEL else int(offsets[-1])
+        ends = [*starts[1:], rows]
+        idx = sorted({j for _, r0, r1 in rows_wanted for j, (u, v) in enumerate(zip(starts, ends, strict=True))
+                      if u < r1 and v > r0})
+        segs = decode_segments(parts[s], (rows, cols), starts, idx, max(r1 for _, _, r1 in rows_wanted))
+        for level, r0, r1 in rows_wanted:
+            mine = [j for j in idx if starts[j] < r1 and ends[j] > r0]
+            block = np.concatenate([segs[j] for j in mine])
+            first = starts[mine[0]]
+            t0, t1, _ = out[level]
+            out[level] = (t0, t1, block[r0 - first:r1 - first])
+    return out

@@ -1,0 +1,182 @@
+"""Varints and zstd-packed byte planes: the small building blocks of every integer stream.
+
+:func:`pack_uint64` stores non-negative integers as their low bytes plane by plane (all first bytes, then all
+second bytes, ...), zstd-compressed: small values cost little, and a mostly-zero matrix (a sparse plane of runs)
+packs very small. :func:`pack_zigzag_columns` does so for a signed matrix, column after column.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterator
+
+import numpy as np
+import zstandard
+
+from mocapz.errors import FormatError
+
+MAX_COUNT = 1 << 31  # most values in one integer stream
+COLUMN_VALUES = 1 << 16  # values zigzagged per step of pack_zigzag_columns (its temporaries stay small)
+
+
+# ---------------------------------------------------------------- varints
+def write_uvarint(value: int) -> bytes:
+    out = bytearray()
+    value = int(value)
+    if value < 0:
+        raise ValueError("uvarint must be non-negative")
+    while True:
+        b = value & 0x7F
+        value >>= 7
+        if value:
+            out.append(b | 0x80)
+        else:
+            out.append(b)
+            return bytes(out)
+
+
+def read_uvarint(buf: bytes | memoryview, pos: int) -> tuple[int, int]:
+    value, shift = 0, 0
+    while True:
+        if pos >= len(buf):
+            raise FormatError(None, "truncated data (varint runs past the end)")
+        b = buf[pos]
+        pos += 1
+        value |= (b & 0x7F) << shift
+        if not b & 0x80:
+            if value >> 64:
+                raise FormatError(None, "corrupted data (varint over 64 bits)")
+            return value, pos
+        shift += 7
+        if shift > 63:
+            raise FormatError(None, "corrupted data (varint too long)")
+
+
+def zigzag(v: np.ndarray) -> np.ndarray:
+    """``(v << 1) ^ (v >> 63)`` as uint64 (same shape and memory order as ``v``), in one new array."""
+    v = np.asarray(v, dtype=np.int64)
+    out = np.left_shift(v, 1, out=np.empty_like(v))
+    out ^= v >> 63
+    return out.view(np.uint64)
+
+
+def unzigzag(u: np.ndarray) -> np.ndarray:
+    u = np.asarray(u, dtype=np.uint64)  # (u >> 1) ^ -(u & 1), both below 2 ** 63: viewed as int64, no casts
+    out = np.right_shift(u, np.uint64(1), out=np.empty(u.shape, np.uint64)).view(np.int64)
+    out ^= np.negative(np.bitwise_and(u, np.uint64(1), out=np.empty(u.shape, np.uint64)).view(np.int64))
+    return out
+
+
+def pack_uint64(values: np.ndarray) -> bytes:
+    """Pack non-negative integers as zstd-compressed byte planes (small-value friendly)."""
+    u = np.ascontiguousarray(values, dtype=np.uint64).ravel()
+    return _pack_planes(lambda: iter([u]), u.size)
+
+
+def pack_zigzag_columns(v: np.ndarray) -> bytes:
+    """``pack_uint64(zigzag(v.T))`` of an int64 matrix ``v`` ``(rows, columns)`` (its columns one after the
+    other), a few columns at a time: no whole-matrix temporaries beside the byte planes."""
+    rows, cols = v.shape
+    step = max(1, COLUMN_VALUES // max(rows, 1))
+    return _pack_planes(lambda: (zigzag(np.ascontiguousarray(v[:, a:a + step].T)).ravel()
+                                 for a in range(0, cols, step)), v.size)
+
+
+def _pack_planes(chunks: Callable[[], Iterator[np.ndarray]], count: int) -> bytes:
+    """The :func:`pack_uint64` stream of the ``count`` uint64 values ``chunks()`` yields (contiguous arrays, asked
+    for twice: their largest, then their bytes): the low bytes of every value, plane by plane, zstd-packed."""
+    top = max((int(c.max()) for c in chunks() if c.size), default=0)
+    nbytes = max(1, (top.bit_length() + 7) // 8)
+    planes = np.empty((nbytes, count), dtype=np.uint8)
+    pos = 0
+    for c in chunks():
+        planes[:, pos:pos + c.size] = c.view(np.uint8).reshape(-1, 8)[:, :nbytes].T
+        pos += c.size
+    body = zstandard.ZstdCompressor(level=19).compress(planes)  # its buffer as it is (no bytes copy)
+    return write_uvarint(count) + bytes([nbytes]) + body
+
+
+def safe_zstd_decompress(data: bytes, limit: int, what: str) -> bytes:
+    """zstd-decompress at most ``limit`` bytes; a frame claiming more is corrupt (FormatError), never a
+    huge allocation."""
+    try:
+        size = zstandard.get_frame_parameters(data).content_size
+    except zstandard.ZstdError as exc:
+        raise FormatError(None, f"corrupted {what} ({exc})") from None
+    if size != zstandard.CONTENTSIZE_UNKNOWN and size > limit:
+        raise FormatError(None, f"corrupted {what} (claims {size} bytes, at most {limit} expected)")
+    try:
+        out = zstandard.ZstdDecompressor().decompress(data, max_output_size=limit)
+    except zstandard.ZstdError as exc:
+        raise FormatError(None, f"corrupted {what} ({exc})") from None
+    return out
+
+
+def zstd_capacity(size: int) -> int:
+    """The most bytes a zstd frame of ``size`` bytes can hold: every block of at most 128 KiB costs at least its
+    3-byte header, so a count claiming more than this is damage, whatever the frame says."""
+    return (size // 3 + 1) << 17
+
+
+def unpack_uint64(buf: bytes, count: int | None = None, *, at_most: int = MAX_COUNT) -> np.ndarray:
+    """Inverse of :func:`pack_uint64`.
+
+    ``count`` is the number of values the caller expects (from the header or an earlier section), else there
+    are at most ``at_most``; a stream claiming anything else is a FormatError before anything is decompressed.
+    """
+    planes = _unpack_planes(buf, count, at_most)
+    nbytes, n = planes.shape
+    full = np.zeros((n, 8), dtype=np.uint8)
+    full[:, :nbytes] = planes.T
+    return full.view(np.uint64).ravel()
+
+
+def unpack_zigzag_columns(buf: bytes, rows: int, cols: int) -> np.ndarray:
+    """Inverse of :func:`pack_zigzag_columns`: the int64 matrix ``(rows, columns)``, equal to
+    ``unzigzag(unpack_uint64(buf, rows * cols)).reshape(cols, rows).T``."""
+    return unpack_zigzag_rows(buf, rows, cols, [(0, rows)])[0]
+
+
+def unpack_zigzag_rows(buf: bytes, rows: int, cols: int, spans: list[tuple[int, int]]) -> list[np.ndarray]:
+    """Rows ``[first, stop)`` of :func:`unpack_zigzag_columns`'s matrix for every span ``(first, stop)``, the
+    stream decompressed once. The planes are joined, transposed and unzigzagged in the narrowest unsigned type
+    that holds them, and widened once at the end (a few bytes per value moved instead of three passes of
+    eight)."""
+    planes = _unpack_planes(buf, rows * cols, MAX_COUNT)
+    nbytes = planes.shape[0]
+    if nbytes > 4:
+        whole = unzigzag(unpack_uint64(buf, rows * cols)).reshape(cols, rows).T
+        return [np.ascontiguousarray(whole[a:b]) for a, b in spans]
+    kind, signed = (np.uint8, np.int8) if nbytes == 1 else (np.uint16, np.int16) if nbytes == 2 \
+        else (np.uint32, np.int32)
+    out = []
+    for a, b in spans:
+        part = planes.reshape(nbytes, cols, rows)[:, :, a:b]
+        u = part[0].astype(kind)
+        for k in range(1, nbytes):
+            u |= part[k].astype(kind) << kind(8 * k)
+        u = u.T
+        # (u >> 1) ^ -(u & 1): below 2 ** (8 nbytes - 1) and 0 or -1, exact in the signed type of the same width
+        v = (u >> kind(1)).view(signed) ^ -(u & kind(1)).view(signed)
+        out.append(v.astype(np.int64, order="C"))
+    return out
+
+
+def _unpack_planes(buf: bytes, count: int | None, at_most: int) -> np.ndarray:
+    """The byte planes ``(bytes per value, values)`` uint8 of a :func:`pack_uint64` stream, its claims checked
+    (:func:`unpack_uint64`)."""
+    n, pos = read_uvarint(buf, 0)
+    if pos >= len(buf):
+        raise FormatError(None, "truncated integer stream")
+    if count is not None and n != count:
+        raise FormatError(None, f"corrupted integer stream ({n} values where {count} are expected)")
+    if n > at_most:
+        raise FormatError(None, f"corrupted integer stream ({n} values, at most {at_most} expected)")
+    nbytes = buf[pos]
+    if not 1 <= nbytes <= 8:
+        raise FormatError(None, "corrupted integer stream (bad byte width)")
+    if n * nbytes > zstd_capacity(len(buf) - pos - 1):
+        raise FormatError(None, f"corrupted integer stream ({n} values cannot fit in {len(buf)} bytes)")
+    raw = safe_zstd_decompress(bytes(buf[pos + 1 :]), n * nbytes, "integer stream")
+    if len(raw) != n * nbytes:
+        raise FormatError(None, "corrupted integer stream (wrong length)")
+    return np.frombuffer(raw, dtype=np.uint8).reshape(nbytes, n)

@@ -1,0 +1,232 @@
+"""Integer matrices coded so that a range of their rows decodes without the rows before it (random access).
+
+Two layouts, built on :mod:`mocapz.format.entropy`'s coders:
+
+* **segments** (:func:`encode_segments`): a ``(rows, columns)`` matrix cut at given rows into segments. Range
+  coded, the Laplace scales are those of :func:`~mocapz.format.entropy.encode_int_matrix` (per block of
+  :data:`~mocapz.format.entropy.BLOCK` rows and column, quarter octaves), coded once, as differences, in a
+  small range stream of their own, and every segment is a range stream of its own (its escapes and body, each
+  after its uvarint length): a segment costs its coder's flush and two lengths, not its scales. A mostly-zero
+  matrix that zstd's byte planes code smaller is stored whole that way (decoded whole, in a fraction of a
+  millisecond, and cut).
+* **running** (:func:`pack_running`): a matrix of running values (a time series of small steps: the coarse
+  knots of a lifting, a level per frame) as its differences within chunks of ``chunk`` rows (segments) and,
+  apart, the differences of the chunks' first rows (a short stream, decoded whole): rows ``[a, b)`` need the
+  chunks holding them, nothing before.
+
+The segment starts and shapes are given by the caller (from the file's header), never read from the stream;
+every length is checked before anything is allocated.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from mocapz.errors import FormatError
+from mocapz.format import entropy
+from mocapz.format.entropy import decode_int_matrix, encode_int_matrix, read_uvarint, write_uvarint
+
+SEG_ZSTD, SEG_RANGE = 0, 1  # the layouts of :func:`encode_segments`
+
+
+def encode_segments(values: np.ndarray, starts: list[int]) -> bytes:
+    """The bytes of ``values`` ``(rows, columns)`` int cut at the rows ``starts`` (increasing, the first 0; the
+    decoder is given the same list): the smaller of the segmented range coding and (for a mostly-zero matrix)
+    zstd's byte planes of the whole."""
+    v = np.asarray(values, dtype=np.int64)
+    _check_starts(starts, v.shape[0])
+    if v.size == 0 or not entropy.HAVE_CONSTRICTION:
+        return bytes([SEG_ZSTD]) + encode_int_matrix(v, entropy.CODER_ZSTD)
+    ranged = _encode_range(v, starts)
+    if np.count_nonzero(v) <= entropy.SPARSE * v.size:
+        packed = bytes([SEG_ZSTD]) + encode_int_matrix(v, entropy.CODER_ZSTD)
+        if len(packed) < len(ranged):
+            return packed
+    return ranged
+
+
+def _encode_range(v: np.ndarray, starts: list[int]) -> bytes:
+    constriction = entropy.constriction
+    q, pick = entropy._delta_scales(v)
+    enc = constriction.stream.queue.RangeEncoder()
+    entropy._encode_scale_codes(enc, q, pick)
+    head = enc.get_compressed().tobytes()
+    out = bytearray([SEG_RANGE, pick]) + write_uvarint(len(head)) + head
+    scale = entropy._block_scale(q, 4, entropy.QUARTER_BIAS)
+    for a, b in zip(starts, [*starts[1:], v.shape[0]], strict=True):
+        enc = constriction.stream.queue.RangeEncoder()
+        esc = entropy._encode_values(enc, v[a:b], scale, a)
+        body = enc.get_compressed().tobytes()
+        out += write_uvarint(len(esc)) + esc + write_uvarint(len(body)) + body
+    return bytes(out)
+
+
+def decode_segments(data: bytes, shape: tuple[int, int], starts: list[int],
+                    wanted: list[int] | None = None, until: int | None = None) -> dict[int, np.ndarray]:
+    """Segments of an :func:`encode_segments` stream of a ``shape`` matrix cut at ``starts``: ``{index: rows}``
+    for the segment indices ``wanted`` (all by default), the others not decoded (a range-coded stream) or not
+    kept; rows from ``until`` on are not needed (the segments holding them end there)."""
+    rows, cols = shape
+    _check_starts(starts, rows)
+    ends = [*starts[1:], rows]
+    if until is not None:
+        ends = [max(a + 1, min(b, until)) for a, b in zip(starts, ends, strict=True)]
+    wanted = list(range(len(starts))) if wanted is None else sorted(set(wanted))
+    if wanted and not 0 <= wanted[0] <= wanted[-1] < len(starts):
+        raise ValueError(f"segments {wanted} of {len(starts)}")
+    buf = memoryview(data)
+    if not buf or buf[0] not in (SEG_ZSTD, SEG_RANGE):
+        raise FormatError(None, "corrupted seekable stream (layout)")
+    if buf[0] == SEG_ZSTD:  # decompressed whole, only the wanted segments' rows unpacked
+        return dict(zip(wanted, _zstd_rows(bytes(buf[1:]), rows, cols, [(starts[i], ends[i]) for i in wanted]),
+                        strict=True)) if wanted else {}
+    if not entropy.HAVE_CONSTRICTION:
+        raise FormatError(None, "this stream was written by the range coder; install 'constriction'")
+    if len(buf) < 2 or buf[1] >= len(entropy.DELTA_SCALES):
+        raise FormatError(None, "corrupted seekable stream (scale model)")
+    pick = buf[1]
+    size, pos = read_uvarint(buf, 2)
+    head = _take(buf, pos, size)
+    pos += size
+    nb = max(1, -(-rows // entropy.BLOCK))
+    dec = _decoder(head)
+    scale = entropy._block_scale(_guard(lambda: entropy._decode_scale_codes(dec, pick, nb, cols)), 4,
+                                 entropy.QUARTER_BIAS)
+    out, keep, last = {}, set(wanted), wanted[-1] if wanted else -1
+    for i, (a, b) in enumerate(zip(starts, [*starts[1:], rows], strict=True)):
+        if i > last:
+            break
+        esc_size, pos = read_uvarint(buf, pos)
+        esc = _take(buf, pos, esc_size)
+        pos += esc_size
+        body_size, pos = read_uvarint(buf, pos)
+        body = _take(buf, pos, body_size)
+        pos += body_size
+        if i in keep:
+            if body_size % 4:
+                raise FormatError(None, "corrupted seekable stream (body)")
+            dec, n = _decoder(body), ends[i] - a
+            sym, marks = _guard(lambda dec=dec, a=a, n=n: entropy._decode_values(dec, scale, n, cols, a))
+            out[i] = _unescape(sym, esc, marks, complete=n == b - a)
+    return out
+
+
+def _unescape(sym: np.ndarray, esc: bytes, marks: np.ndarray, complete: bool) -> np.ndarray:
+    """``sym`` with its escape marks replaced by the values stored aside (a segment decoded only in part has the
+    first of them)."""
+    if not complete and marks.size:
+        values = entropy.unzigzag(entropy.unpack_uint64(esc, at_most=entropy.MAX_COUNT)) if esc else np.zeros(0)
+        if values.size < marks.size:
+            raise FormatError(None, "corrupted integer stream (escapes missing)")
+        sym.reshape(-1)[marks] = values[:marks.size]
+        return sym
+    return entropy._unescape(sym, esc, marks)
+
+
+def _zstd_rows(data: bytes, rows: int, cols: int, spans: list[tuple[int, int]]) -> list[np.ndarray]:
+    """Rows of a CODER_ZSTD :func:`~mocapz.format.entropy.encode_int_matrix` stream of a ``(rows, cols)``
+    matrix, per span ``(first, stop)``."""
+    if len(data) < 3 or data[0] != entropy.CODER_ZSTD:
+        raise FormatError(None, "corrupted seekable stream (zstd layout)")
+    r, pos = read_uvarint(data, 1)
+    c, pos = read_uvarint(data, pos)
+    if (r, c) != (rows, cols):
+        raise FormatError(None, f"corrupted integer stream (shape {(r, c)} where {(rows, cols)} is expected)")
+    return entropy.unpack_zigzag_rows(data[pos:], rows, cols, spans)
+
+
+def _decoder(body: bytes):  # noqa: ANN202 - constriction's RangeDecoder
+    return entropy.constriction.stream.queue.RangeDecoder(np.frombuffer(body, dtype=np.uint32).copy())
+
+
+def _guard(call):  # noqa: ANN001, ANN202
+    try:
+        return call()
+    except FormatError:
+        raise
+    except Exception as exc:  # constriction raises plain exceptions on corrupt input
+        raise FormatError(None, f"corrupted entropy-coded data ({exc})") from None
+
+
+def _take(buf: memoryview, pos: int, size: int) -> bytes:
+    if pos + size > len(buf):
+        raise FormatError(None, "truncated seekable stream")
+    return bytes(buf[pos:pos + size])
+
+
+def _check_starts(starts: list[int], rows: int) -> None:
+    if not starts or starts[0] != 0 or any(b <= a for a, b in zip(starts, starts[1:], strict=False)) \
+            or (rows and starts[-1] >= rows):
+        raise ValueError(f"segment starts {starts[:4]}... do not cut {rows} rows")
+
+
+# ---------------------------------------------------------------- running values
+def chunk_starts(rows: int, chunk: int) -> list[int]:
+    """The first row of every chunk of ``chunk`` rows (``[0]`` for an empty matrix)."""
+    return list(range(0, max(rows, 1), chunk))
+
+
+def pack_running(values: np.ndarray, chunk: int) -> bytes:
+    """The bytes of running values ``(rows, columns)`` int: the differences of the chunks' first rows (the first
+    from 0; an :func:`~mocapz.format.entropy.encode_int_matrix` stream after its uvarint length), then the
+    differences within every chunk of ``chunk`` rows, its first row left out (:func:`encode_segments`, a segment
+    a chunk)."""
+    v = np.asarray(values, dtype=np.int64)
+    rows, cols = v.shape
+    firsts = encode_int_matrix(np.diff(v[::chunk], axis=0, prepend=0))
+    inner = np.diff(v, axis=0)  # row r - 1: v[r] - v[r - 1]; the rows of the chunks' first rows left out
+    keep = np.ones(max(rows - 1, 0), dtype=bool)
+    keep[chunk - 1::chunk] = False
+    starts = _inner_starts(rows, chunk)
+    return write_uvarint(len(firsts)) + firsts + (encode_segments(inner[keep], starts) if keep.any() else b"")
+
+
+def _inner_starts(rows: int, chunk: int) -> list[int]:
+    """Where each chunk's inner rows (all but its first) start in :func:`pack_running`'s inner matrix (chunks of
+    one row have none and no segment)."""
+    starts, pos = [], 0
+    for a in range(0, rows, chunk):
+        n = min(rows, a + chunk) - a - 1
+        if n > 0:
+            starts.append(pos)
+            pos += n
+    return starts
+
+
+def read_running(data: bytes, shape: tuple[int, int], chunk: int, a: int = 0, b: int | None = None) -> np.ndarray:
+    """Rows ``[a, b)`` ``(b - a, columns)`` int64 of a :func:`pack_running` stream of a ``shape`` matrix, decoding
+    only the chunks holding them."""
+    rows, cols = shape
+    b = rows if b is None else b
+    if not 0 <= a <= b <= rows or chunk < 1:
+        raise ValueError(f"rows [{a}, {b}) of {rows} in chunks of {chunk}")
+    size, pos = read_uvarint(data, 0)
+    nchunks = len(range(0, rows, chunk))
+    firsts = np.cumsum(decode_int_matrix(_take(memoryview(data), pos, size), (nchunks, cols)), axis=0)
+    if a == b:
+        return np.zeros((0, cols), dtype=np.int64)
+    first, last = a // chunk, (b - 1) // chunk
+    # the segment index of every chunk with inner rows (chunks of one row have none)
+    seg_of = np.cumsum([min(rows, c + chunk) - c > 1 for c in range(0, rows, chunk)]) - 1
+    needs = [c for c in range(first, last + 1) if min(rows, c * chunk + chunk) - c * chunk > 1 and c * chunk + 1 < b]
+    wanted = [int(seg_of[c]) for c in needs]
+    starts = _inner_starts(rows, chunk)
+    # the inner rows up to row b - 1 (chunk ``last``'s inner rows before it)
+    until = starts[int(seg_of[last])] + (b - 1 - last * chunk) if needs and needs[-1] == last else None
+    segs = decode_segments(bytes(memoryview(data)[pos + size:]), (rows - nchunks, cols), starts, wanted, until) \
+        if wanted else {}
+    out = np.empty((b - a, cols), dtype=np.int64)
+    for c in range(first, last + 1):
+        lo = c * chunk
+        n = min(rows, lo + chunk) - lo
+        part = np.empty((n, cols), dtype=np.int64)
+        part[0] = firsts[c]
+        if n > 1 and c * chunk + 1 < b:  # the inner rows decoded (those up to b - 1)
+            inner = segs[int(seg_of[c])]
+            n = 1 + inner.shape[0]
+            part = part[:n]
+            np.cumsum(inner, axis=0, out=part[1:])
+            part[1:] += firsts[c]
+        s, e = max(a, lo), min(b, lo + n)
+        out[s - a:e - a] = part[s - lo:e - lo]
+    return out
