@@ -22,6 +22,12 @@ pga_decode = importlib.import_module("mocapz.codecs.pga.decode")  # the module (
 CLIPS = [("09_06", None), ("02_03", None), ("12_01", 300), ("06_13", 400), ("01_01", 300)]  # 01_01: ASF/AMC
 
 
+@pytest.fixture(autouse=True)
+def _compiled_on_short_clips(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The compiled path on these short clips too (the decoder takes the NumPy path under ikjit.LAZY_FRAMES)."""
+    monkeypatch.setattr(ikjit, "LAZY_FRAMES", 0)
+
+
 @pytest.fixture(scope="module")
 def coded() -> dict[str, bytes]:
     out = {}

@@ -158,7 +158,7 @@ def decode_rows(skeleton: Skeleton, s: PGASettings, sections: dict[str, bytes], 
     problem = IKProblem(skeleton, d.model, d.effectors, d.problem.rest_rot, trans, d.problem.scale)
     sub = Decoded(d.model, d.effectors, problem, d.root_pos[rows], d.root_rot[rows], d.targets[rows],
                   None if d.coords is None else d.coords[rows], d.other[rows])
-    return rebuild(skeleton, sub, s, sub.targets)
+    return rebuild(skeleton, sub, s, sub.targets, frames=n)  # the whole clip's path: its rows' values
 
 
 def decode_kept(skeleton: Skeleton, s: PGASettings, sections: dict[str, bytes], n: int,
@@ -173,19 +173,24 @@ def decode_kept(skeleton: Skeleton, s: PGASettings, sections: dict[str, bytes], 
     return rebuild(skeleton, d, s, targets)
 
 
-def rebuild(skeleton: Skeleton, d: Decoded, s: PGASettings, targets: np.ndarray) -> np.ndarray:
-    """IK and channel assembly for the kept frames. Always returns finite values."""
+def rebuild(skeleton: Skeleton, d: Decoded, s: PGASettings, targets: np.ndarray,
+            frames: int | None = None) -> np.ndarray:
+    """IK and channel assembly for the kept frames. Always returns finite values. ``frames``: the kept frames
+    of the clip ``d`` is taken from (None: ``d``'s), which picks the compiled or the NumPy path
+    (:func:`ikjit.kernels`)."""
     n = d.root_pos.shape[0]
+    clip = n if frames is None else frames
     model = d.model
     x0 = d.coords if d.coords is not None else np.zeros((n, model.k))
     if len(d.effectors) == 0 or s.iterations == 0:
         x = x0
     else:
         x = solve_fast(d.problem, targets, x0, x_prior=d.coords, lam_temporal=s.lam_temporal,
-                       lam_prior=s.lam_prior if d.coords is not None else 0.0, iterations=s.iterations)
+                       lam_prior=s.lam_prior if d.coords is not None else 0.0, iterations=s.iterations,
+                       frames=clip)
     if not np.isfinite(x).all():  # pragma: no cover - solve() keeps finite values
         x = np.nan_to_num(x0)
-    jit = ikjit.kernels()
+    jit = ikjit.kernels(clip)
     tables = euler_tables(skeleton, model.joints) if jit is not None else None
     if tables is not None and jit is not None:  # the compiled path: the pose's Euler angles in one pass
         out = np.zeros((n, skeleton.n_channels))
@@ -199,7 +204,7 @@ def rebuild(skeleton: Skeleton, d: Decoded, s: PGASettings, targets: np.ndarray)
         return finish_channels(skeleton, out, d.root_pos, d.other)
     local = np.broadcast_to(np.eye(3), (n, skeleton.n_joints, 3, 3)).copy()
     local[:, 0] = d.root_rot
-    local[:, model.joints] = pose(model, x)
+    local[:, model.joints] = pose(model, x, clip)
     if not np.isfinite(local).all():  # only damaged streams (huge steps, loadings or coordinates) get here
         raise FormatError(None, "corrupted PGA stream (poses out of range)")
     return channels_from_pose(skeleton, local, d.root_pos, d.other)

@@ -8,7 +8,10 @@ damping schedule, acceptance rule), the same closed-form rotations and right Jac
 equations. The results agree with the NumPy path to float rounding (tests/test_pga_speed_equal.py).
 
 numba is imported lazily and only here; ``MOCAPZ_NO_NUMBA=1`` in the environment (or :func:`set_enabled`)
-selects the NumPy path, as on a machine without numba.
+selects the NumPy path, as on a machine without numba. A clip under :data:`LAZY_FRAMES` frames takes the NumPy
+path too, whether or not numba is loaded already: loading it costs more than the NumPy path spends there, and
+the path must be a function of the clip alone (the two agree to rounding, not to the bit, and the encoder's
+rate control and correction layer decode with it, so the file's bytes could depend on it).
 """
 
 from __future__ import annotations
@@ -20,6 +23,8 @@ import numpy as np
 
 _KERNELS: dict[str, Any] | None = None
 _ENABLED = os.environ.get("MOCAPZ_NO_NUMBA", "") in ("", "0")
+LAZY_FRAMES = 500  # clips of fewer frames: the NumPy path, always (the correction layer's threshold too,
+# correction/compiled.py: a clip under it loads no numba at all)
 
 
 def set_enabled(on: bool) -> bool:
@@ -35,10 +40,12 @@ def enabled() -> bool:
     return _ENABLED
 
 
-def kernels() -> dict[str, Any] | None:
-    """The compiled kernels by name, or None without numba (or when disabled)."""
+def kernels(frames: int | None = None) -> dict[str, Any] | None:
+    """The compiled kernels by name for a clip of ``frames`` frames, or None: without numba, when disabled, or
+    when ``frames`` is under :data:`LAZY_FRAMES` (None: whatever the length; tests). Never a function of
+    whether numba is loaded already (see the module's docstring)."""
     global _KERNELS
-    if not _ENABLED:
+    if not _ENABLED or (frames is not None and frames < LAZY_FRAMES):
         return None
     if _KERNELS is None:
         try:

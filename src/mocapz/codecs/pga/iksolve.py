@@ -67,9 +67,10 @@ def _mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
         + a[..., :, 2, None, :] * b[..., None, 2, :, :]
 
 
-def pose(model: PGAModel, x: np.ndarray) -> np.ndarray:
-    """:meth:`PGAModel.pose` with frames last inside: rotations ``(F, n, 3, 3)`` of coordinates ``(F, k)``."""
-    jit = ikjit.kernels()
+def pose(model: PGAModel, x: np.ndarray, frames: int | None = None) -> np.ndarray:
+    """:meth:`PGAModel.pose` with frames last inside: rotations ``(F, n, 3, 3)`` of coordinates ``(F, k)``;
+    ``frames``: the clip's length, which picks the compiled or the NumPy path (:func:`ikjit.kernels`; None: F)."""
+    jit = ikjit.kernels(x.shape[0] if frames is None else frames)
     if jit is not None:
         out = np.empty((x.shape[0], model.mean.shape[0], 3, 3))
         jit["pose"](np.ascontiguousarray(x, dtype=np.float64), np.ascontiguousarray(model.basis.T, dtype=np.float64),
@@ -194,11 +195,13 @@ def spd_solve(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 
 def solve_fast(problem: IKProblem, targets: np.ndarray, x0: np.ndarray, *, x_prior: np.ndarray | None = None,
-               lam_temporal: float = 1e-3, lam_prior: float = 0.0, iterations: int = 12) -> np.ndarray:
+               lam_temporal: float = 1e-3, lam_prior: float = 0.0, iterations: int = 12,
+               frames: int | None = None) -> np.ndarray:
     """:func:`mocapz.codecs.pga.ik.solve`, faster (same arguments; the same result to rounding): ``(F, k)``
-    coordinates (radians) for effector targets ``(F, e, 3)`` in the root frame (file units)."""
+    coordinates (radians) for effector targets ``(F, e, 3)`` in the root frame (file units). ``frames``: the
+    clip's length, which picks the compiled or the NumPy path (:func:`ikjit.kernels`; None: F)."""
     fast = FastIK(problem)
-    jit = ikjit.kernels()
+    jit = ikjit.kernels(targets.shape[0] if frames is None else frames)
     if jit is not None and lam_temporal <= 0:
         return _solve_jit(jit, fast, targets, x0, x_prior, lam_prior, iterations)
     x = np.array(x0, dtype=np.float64).T.copy()  # (k, F)
