@@ -20,6 +20,17 @@ jit = njit(cache=True, nogil=True, error_model="numpy")
 
 
 @jit
+def _predict(y, i: int, h: int, c: int, four: bool) -> float:
+    """Sample ``i``'s prediction (column ``c``) from the decoded samples ``h`` away: the 4-point
+    Deslauriers-Dubuc filter where ``four`` (both ``3h`` neighbours inside), else the mean of the two next."""
+    left = y[i - h, c]
+    right = y[i + h, c]
+    if four:
+        return (9.0 * (left + right) - (y[i - 3 * h, c] + y[i + 3 * h, c])) / 16.0
+    return 0.5 * (left + right)
+
+
+@jit
 def details(xp, tp, y, q, levels: int, factors, step_scale: float, row0: int) -> None:
     """Code every detail level, coarse to fine, into ``y`` and ``q`` (rows from ``row0``, after the knots).
 
@@ -35,12 +46,7 @@ def details(xp, tp, y, q, levels: int, factors, step_scale: float, row0: int) ->
         for c in range(cols):
             for t in range(m):
                 i = h + 2 * h * t
-                left = y[i - h, c]
-                right = y[i + h, c]
-                if 1 <= t < hi:
-                    pred = (9.0 * (left + right) - (y[i - 3 * h, c] + y[i + 3 * h, c])) / 16.0
-                else:
-                    pred = 0.5 * (left + right)
+                pred = _predict(y, i, h, c, 1 <= t < hi)
                 tol = f * tp[i, c]
                 step = step_scale * tol
                 d = xp[i, c] - pred
@@ -75,12 +81,7 @@ def decode_details(q, tol_col, halves, lev, groups, y, levels: int, factors, ste
             lev_i = lev[min(i, frames - 1)]
             qr = q[row + t]
             for c in range(cols):
-                left = y[i - h, c]
-                right = y[i + h, c]
-                if 1 <= t < hi:
-                    pred = (9.0 * (left + right) - (y[i - 3 * h, c] + y[i + 3 * h, c])) / 16.0
-                else:
-                    pred = 0.5 * (left + right)
+                pred = _predict(y, i, h, c, 1 <= t < hi)
                 tv = tol_col[c] * halves[lev_i[groups[c]]]
                 if tv > big:
                     tv = big
