@@ -27,6 +27,7 @@ from mocapz.format import entropy
 from mocapz.format.entropy import decode_int_matrix, encode_int_matrix, read_uvarint, write_uvarint
 
 SEG_ZSTD, SEG_RANGE = 0, 1  # the layouts of :func:`encode_segments`
+RUN_WHOLE, RUN_CHUNKS = 0, 1  # the layouts of :func:`pack_running`
 
 
 def encode_segments(values: np.ndarray, starts: list[int]) -> bytes:
@@ -167,10 +168,12 @@ def chunk_starts(rows: int, chunk: int) -> list[int]:
 
 
 def pack_running(values: np.ndarray, chunk: int) -> bytes:
-    """The bytes of running values ``(rows, columns)`` int: the differences of the chunks' first rows (the first
-    from 0; an :func:`~mocapz.format.entropy.encode_int_matrix` stream after its uvarint length), then the
-    differences within every chunk of ``chunk`` rows, its first row left out (:func:`encode_segments`, a segment
-    a chunk)."""
+    """The bytes of running values ``(rows, columns)`` int, a layout byte first: :data:`RUN_CHUNKS`, the
+    differences of the chunks' first rows (the first from 0; an :func:`~mocapz.format.entropy.encode_int_matrix`
+    stream after its uvarint length), then the differences within every chunk of ``chunk`` rows, its first row
+    left out (:func:`encode_segments`, a segment a chunk); or :data:`RUN_WHOLE`, the differences of every row in
+    zstd's byte planes, where that is no larger (a mostly-still series: unpacked and summed whole in a fraction
+    of a millisecond, it needs no chunks)."""
     v = np.asarray(values, dtype=np.int64)
     rows, cols = v.shape
     firsts = encode_int_matrix(np.diff(v[::chunk], axis=0, prepend=0))
@@ -178,7 +181,13 @@ def pack_running(values: np.ndarray, chunk: int) -> bytes:
     keep = np.ones(max(rows - 1, 0), dtype=bool)
     keep[chunk - 1::chunk] = False
     starts = _inner_starts(rows, chunk)
-    return write_uvarint(len(firsts)) + firsts + (encode_segments(inner[keep], starts) if keep.any() else b"")
+    chunked = bytes([RUN_CHUNKS]) + write_uvarint(len(firsts)) + firsts \
+        + (encode_segments(inner[keep], starts) if keep.any() else b"")
+    if np.count_nonzero(inner) <= entropy.SPARSE * max(inner.size, 1):
+        whole = bytes([RUN_WHOLE]) + encode_int_matrix(np.diff(v, axis=0, prepend=0), entropy.CODER_ZSTD)
+        if len(whole) <= len(chunked):
+            return whole
+    return chunked
 
 
 def _inner_starts(rows: int, chunk: int) -> list[int]:
@@ -200,7 +209,13 @@ def read_running(data: bytes, shape: tuple[int, int], chunk: int, a: int = 0, b:
     b = rows if b is None else b
     if not 0 <= a <= b <= rows or chunk < 1:
         raise ValueError(f"rows [{a}, {b}) of {rows} in chunks of {chunk}")
-    size, pos = read_uvarint(data, 0)
+    if not data or data[0] not in (RUN_WHOLE, RUN_CHUNKS):
+        raise FormatError(None, "corrupted seekable stream (running layout)")
+    if data[0] == RUN_WHOLE:
+        if a == b:
+            return np.zeros((0, cols), dtype=np.int64)
+        return np.cumsum(_zstd_rows(data[1:], rows, cols, [(0, b)])[0], axis=0)[a:]
+    size, pos = read_uvarint(data, 1)
     nchunks = len(range(0, rows, chunk))
     firsts = np.cumsum(decode_int_matrix(_take(memoryview(data), pos, size), (nchunks, cols)), axis=0)
     if a == b:

@@ -2,14 +2,14 @@
 
 A clip of at least :data:`SEEK_MIN` frames (format 3 of ``c.head``) codes its integers as
 :func:`~.lifting.quantise` makes them (the same values as format 2), but packed so that frames ``[a, b)`` decode
-from a few chunks of :data:`SEEK_CHUNK` frames (:mod:`mocapz.format.seekable`):
+from a few chunks and segments (:mod:`mocapz.format.seekable`):
 
 * ``c.res``: a layout byte, then streams each after its uvarint length: the coarse knots as running values
   (chunks of ``SEEK_CHUNK / 2 ** depth`` knots), then the details, all levels in one stream or one stream a
-  level (the smaller), cut into segments where each level's samples enter a new chunk of frames;
+  level (the smaller), in segments of about :data:`SEGMENT_VALUES` values;
 * ``c.levels``: the largest tightening level on the knots of every group (uvarints: the knots' quantisation
   step, which format 2 takes from every knot's tolerance), then the levels ``(frames, groups)`` as running
-  values (chunks of :data:`SEEK_CHUNK` frames).
+  values (chunks of :data:`LEVEL_CHUNK` frames, or whole where they are mostly still).
 
 A window needs, at lifting level ``l`` (spacing ``h = 2 ** l``), the samples within ``3 h`` of the samples it
 needs at the level below (the 4-point Deslauriers-Dubuc filter's reach): about ``3 * 2 ** depth`` frames on each
@@ -26,8 +26,9 @@ from mocapz.errors import FormatError
 from mocapz.format.entropy import read_uvarint, write_uvarint
 from mocapz.format.seekable import decode_segments, encode_segments, pack_running, read_running
 
-SEEK_CHUNK = 512  # frames per chunk of the seekable streams
-SEEK_MIN = 2 * SEEK_CHUNK  # clips from this many frames are coded seekable (shorter ones decode whole quickly)
+SEEK_CHUNK = 1024  # frames per chunk of the knots' running values (a chunk's first row costs a few bits more
+# per column than a time difference: 1 to 2 % of a 2,000-frame clip's knots at 512 frames)
+SEEK_MIN = 1024  # clips from this many frames are coded seekable (shorter ones decode whole in a few ms)
 LEVEL_CHUNK = 128  # frames per chunk of the levels' running values (small numbers: a chunk's first row costs little)
 SEGMENT_VALUES = 4096  # values per segment of a detail stream (a segment costs its coder's flush and two lengths,
 # about 8 bytes: under 1 % of a dense stream's 4,096 values; a seek decodes up to that many before its rows)
