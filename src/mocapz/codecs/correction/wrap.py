@@ -193,7 +193,8 @@ def apply(sections: Sections, header: ClipHeader, decode: Decoder) -> AnyMotion:
 def apply_window(sections: Sections, header: ClipHeader, start: int, stop: int) -> AnyMotion | None:
     """Frames ``[start, stop)`` of a clip coded with the seekable layout on a zero base, decoding only the chunks
     they need (the values of a full decode, to the bit), or None where the whole clip must be decoded (another
-    layout, a model base, a marker quantum the window alone cannot settle)."""
+    layout, a model base, a window the correction leaves at zero: whether the motion keeps the source's decimals
+    and quantum depends on the whole clip)."""
     if "c.head" not in sections:
         return None
     try:
@@ -210,10 +211,9 @@ def apply_window(sections: Sections, header: ClipHeader, start: int, stop: int) 
         mask = None if gaps is None else unpack_mask(gaps, (header.frames, len(header.labels)))[start:stop]
     except KeyError as exc:
         raise FormatError(None, f"corrupted correction (missing section {exc})") from None
-    out = _add(zero_motion(part, None, mask), y, part)
-    if isinstance(out, MarkerMotion) and out.quantum is not None:
-        return None  # the full clip may be off the quantum where this window is on it
-    return out
+    if not y.any():
+        return None  # the full decode's motion tells whether its values keep the source's decimals and quantum
+    return _add(zero_motion(part, None, mask), y, part)
 
 
 def _head(head: bytes) -> tuple[int, int, int, int]:
