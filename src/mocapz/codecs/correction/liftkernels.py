@@ -20,6 +20,15 @@ jit = njit(cache=True, nogil=True, error_model="numpy")
 
 
 @jit
+def _level(n: int, level: int) -> tuple[int, int, int]:
+    """Level ``level`` of ``n`` padded samples: its spacing ``h``, its new samples' count ``m`` (the odd multiples
+    of ``h``) and ``hi``: samples ``1 <= t < hi`` have both ``3h`` neighbours (the 4-point filter)."""
+    h = 1 << level
+    m = len(range(h, n - 1, 2 * h))
+    return h, m, min(m, (n - 1 - 4 * h) // (2 * h) + 1)
+
+
+@jit
 def _predict(y, i: int, h: int, c: int, four: bool) -> float:
     """Sample ``i``'s prediction (column ``c``) from the decoded samples ``h`` away: the 4-point
     Deslauriers-Dubuc filter where ``four`` (both ``3h`` neighbours inside), else the mean of the two next."""
@@ -39,9 +48,7 @@ def details(xp, tp, y, q, levels: int, factors, step_scale: float, row0: int) ->
     n, cols = xp.shape
     row = row0
     for level in range(levels - 1, -1, -1):
-        h = 1 << level
-        m = len(range(h, n - 1, 2 * h))
-        hi = min(m, (n - 1 - 4 * h) // (2 * h) + 1)
+        h, m, hi = _level(n, level)
         f = factors[level]
         for c in range(cols):
             for t in range(m):
@@ -72,9 +79,7 @@ def decode_details(q, tol_col, halves, lev, groups, y, levels: int, factors, ste
     n, cols = y.shape
     row = row0
     for level in range(levels - 1, -1, -1):
-        h = 1 << level
-        m = len(range(h, n - 1, 2 * h))
-        hi = min(m, (n - 1 - 4 * h) // (2 * h) + 1)
+        h, m, hi = _level(n, level)
         t_step = step_scale * factors[level]
         for t in range(m):
             i = h + 2 * h * t
