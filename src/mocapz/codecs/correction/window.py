@@ -77,12 +77,12 @@ def write_uvarint_bytes(b: bytes) -> bytes:
     return write_uvarint(len(b)) + b
 
 
-def _streams(data: bytes, count: int) -> tuple[int, list[bytes]]:
-    """The layout byte and ``count`` length-prefixed streams of a seekable ``c.res``."""
+def _streams(data: bytes, frames: int, depth: int) -> tuple[int, list[bytes]]:
+    """The layout byte and the length-prefixed streams (the knots', then the details') of a seekable ``c.res``."""
     if not data or data[0] not in (ONE_STREAM, STREAM_A_LEVEL):
         raise FormatError(None, "corrupted correction stream (layout)")
     out, pos = [], 1
-    for _ in range(count):
+    for _ in range(1 + len(_detail_rows(frames, depth, data[0]))):
         size, pos = read_uvarint(data, pos)
         if pos + size > len(data):
             raise FormatError(None, "corrupted correction stream (part length)")
@@ -99,8 +99,7 @@ def read_res(data: bytes, frames: int, cols: int, depth: int) -> np.ndarray:
     if cols == 0:
         return np.zeros((0, 0), dtype=np.int64)
     rows = row_groups(frames, depth)
-    split = data[0] if data else -1
-    _, parts = _streams(data, 1 + len(_detail_rows(frames, depth, split if split in (0, 1) else 0)))
+    split, parts = _streams(data, frames, depth)
     knots = read_running(parts[0], (rows[0], cols), _knot_chunk(depth, frames))
     out = [np.diff(knots, axis=0, prepend=0)]
     for part, n, starts in zip(parts[1:], _detail_rows(frames, depth, split),
@@ -157,8 +156,7 @@ def decode_window(data: bytes, lev_data: bytes, tol_col: np.ndarray, halves: np.
     lo, hi = k_lo * span, k_hi * span  # the window of padded positions worked on
     top, lev = read_levels(lev_data, frames, int(groups.max(initial=-1)) + 1, min(lo, frames - 1),
                            min(hi, frames - 1) + 1)
-    split = data[0] if data else -1
-    _, parts = _streams(data, 1 + len(_detail_rows(frames, depth, split if split in (0, 1) else 0)))
+    split, parts = _streams(data, frames, depth)
     rows = row_groups(frames, depth)
     knots = read_running(parts[0], (rows[0], cols), _knot_chunk(depth, frames), k_lo, k_hi + 1)
     y = np.zeros((hi - lo + 1, cols))
