@@ -203,9 +203,11 @@ def iter_decompress(data: bytes, path: str | Path | None = None, *,
     info = codec_of(name, version, path)
     start, stop = blocking.frame_range(frames, header.frames)
     ends = np.cumsum(lengths).tolist()
-    for part, a, b in zip(parts, [0, *ends[:-1]], ends, strict=True):
-        if b <= start or a >= stop:
-            continue
+    pieces = blocking.iter_spans(info.decode, parts, list(zip([0, *ends[:-1]], ends, strict=True)), header, start,
+                                 stop)
+    while True:
         with decoder_errors(name, path):
-            piece = blocking.decode_spans(info.decode, [part], [(a, b)], header, start, stop)
+            piece = next(pieces, None)
+        if piece is None:
+            return
         yield stop - start, piece

@@ -9,7 +9,7 @@ from the clip's). The byte layout is in :mod:`mocapz.format.blocks`.
 from __future__ import annotations
 
 import re
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import replace
 from typing import Any
 
@@ -86,16 +86,52 @@ def decode(decode_one: Callable[[Sections, ClipHeader], AnyMotion], sections: Se
 def decode_spans(decode_one: Callable[[Sections, ClipHeader], AnyMotion], parts: list[Sections],
                  spans: list[tuple[int, int]], header: ClipHeader, start: int, stop: int) -> AnyMotion:
     """Frames ``[start, stop)`` from blocks ``parts`` covering frames ``spans`` ``[(a, b), ...]`` (in order,
-    end to end), decoding only the blocks the range meets."""
-    pieces = []
-    for i, (a, b) in enumerate(spans):
-        if b <= start or a >= stop:
-            continue
-        piece = decode_one(parts[i], replace(header, frames=b - a))
-        if piece.n_frames != b - a:
-            raise ValueError(f"block {i} decoded to {piece.n_frames} frames, not {b - a}")
-        pieces.append(piece.slice(max(start - a, 0), min(stop, b) - a))
-    return joined(pieces)
+    end to end), decoding only the blocks the range meets (:func:`iter_spans`)."""
+    return joined(list(iter_spans(decode_one, parts, spans, header, start, stop)))
+
+
+def iter_spans(decode_one: Callable[[Sections, ClipHeader], AnyMotion], parts: list[Sections],
+               spans: list[tuple[int, int]], header: ClipHeader, start: int, stop: int) -> Iterator[AnyMotion]:
+    """The pieces of frames ``[start, stop)`` block by block, as :func:`decode_spans` joins them: the blocks the
+    range meets, decoded from the last block before them that decodes on its own (a stream's blocks may
+    continue the block before them, :data:`~mocapz.format.blocks.CONTINUES`)."""
+    meets = [i for i, (a, b) in enumerate(spans) if a < stop and b > start]
+    first = meets[0]
+    while first > 0 and blocks.CONTINUES in parts[first]:
+        first -= 1
+    before = None
+    for i in range(first, meets[-1] + 1):
+        a, b = spans[i]
+        try:
+            piece = decode_block(decode_one, parts[i], header, b - a, before)
+        except ValueError as exc:
+            raise ValueError(f"block {i}: {exc}") from None
+        before = last_frame(piece)
+        if i >= meets[0]:
+            yield piece.slice(max(start - a, 0), min(stop, b) - a)
+
+
+def decode_block(decode_one: Callable[[Sections, ClipHeader], AnyMotion], part: Sections, header: ClipHeader,
+                 frames: int, before: np.ndarray | None) -> AnyMotion:
+    """One block's motion (ValueError if it is not ``frames`` frames long); a block that continues the one before
+    it (its section :data:`~mocapz.format.blocks.CONTINUES`) is given that block's last decoded frame
+    ``before`` (:func:`last_frame`; ValueError without it)."""
+    if blocks.CONTINUES in part:
+        if before is None:
+            raise ValueError("it continues the block before it, which is missing")
+        part = {k: v for k, v in part.items() if k != blocks.CONTINUES}
+    else:
+        before = None
+    piece = decode_one(part, replace(header, frames=frames, before=before))
+    if piece.n_frames != frames:
+        raise ValueError(f"it decoded to {piece.n_frames} frames, not {frames}")
+    return piece
+
+
+def last_frame(motion: AnyMotion) -> np.ndarray:
+    """``(columns,)`` the values of a motion's last frame (flattened; float64), what the block after it continues
+    from."""
+    return np.array(motion.values[-1], dtype=np.float64).reshape(-1)
 
 
 def joined(pieces: list[AnyMotion]) -> AnyMotion:

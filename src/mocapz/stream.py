@@ -7,11 +7,15 @@
 >>> for motion in dec.feed(chunk): ...   # one motion per block, as soon as its bytes are in
 
 A block is coded as soon as it is full (default 1 s of motion: the latency), as a clip of its own, as in a
-file coded in blocks (:mod:`mocapz.blocking`). What a block's correction decides on the whole clip in a file
-(foot contacts, body height) it decides on the last :data:`HISTORY_S` seconds (more than the contacts' floor
-window, so a stream's contacts are the whole file's), and the jitter allowance is
-spent block after block against the energy seen so far; so memory stays bounded whatever the stream's
-length. The bytes (:mod:`mocapz.format.stream`) are a ``.mcz`` that :func:`mocapz.decompress` reads.
+file coded in blocks (:mod:`mocapz.blocking`), but continuing the block before it: the lossy codecs' correction
+takes the decoded last frame of the block before as its first knot (``c.head`` format 4), so a block pays no
+absolute values of its own; every ``key`` seconds (default 10) a block decodes on its own, where a reader of the
+file can start (:func:`mocapz.blocking.iter_spans`). What a block's correction decides on the whole clip in a
+file (foot contacts, body height) it decides on the last :data:`HISTORY_S` seconds (more than the contacts' floor
+window, so a stream's contacts are the whole file's), and the jitter allowance is spent block after block against
+the energy seen so far; what the correction keeps from block to block (its column layout, so the tolerance codes
+repeat and are written once) lives in ``cache["stream"]``. So memory stays bounded whatever the stream's length.
+The bytes (:mod:`mocapz.format.stream`) are a ``.mcz`` that :func:`mocapz.decompress` reads.
 """
 
 from __future__ import annotations
@@ -27,15 +31,24 @@ from mocapz import blocking
 from mocapz.api import codec_of, decoder_errors
 from mocapz.codecs import get_codec
 from mocapz.codecs.correction.context import acceleration_energy
+from mocapz.codecs.correction.fit import lifting_levels
 from mocapz.codecs.target import ErrorMetric
 from mocapz.errors import FormatError, OptionError
 from mocapz.format import stream as framing
-from mocapz.format.blocks import thin
+from mocapz.format.blocks import CONTINUES, thin
 from mocapz.format.layout import decode_header, encode_layout
 from mocapz.model.header import ClipHeader
 from mocapz.model.motion import AnyMotion, BlockOf, MarkerMotion, Motion
 
 HISTORY_S = 10.0  # seconds of past frames a block's decisions look at
+
+
+def default_block(frame_rate: float) -> int:
+    """About a second of frames, a whole number of the lossy codecs' knot spacings (:func:`.fit.lifting_levels`:
+    a continued block's lifting then ends on a knot, with no padded frames flattening its last frames): 128
+    frames at 120 fps, 64 at 60 fps, 32 at 30 fps."""
+    span = 1 << lifting_levels(frame_rate)
+    return max(1, round(frame_rate / span)) * span
 
 
 class StreamEncoder:
@@ -45,12 +58,15 @@ class StreamEncoder:
         template: a motion with the stream's layout (skeleton or marker labels, frame rate, units, decimals);
             its frames are not coded.
         codec: a registered codec name.
-        block: block length (frames, ``"1s"``; default 1 s): the latency, and the unit of random access.
+        block: block length (frames, ``"1s"``): the latency; default (None) about 1 s, a whole number of the
+            correction's knot spacings (:func:`default_block`).
+        key: how often a block decodes on its own, without the blocks before it (frames, ``"10s"``; 0: every
+            block): a reader seeking into the file decodes from the last such block.
         **options: the codec's options (targets hold on every block, hence on the stream).
     """
 
-    def __init__(self, template: AnyMotion, codec: str = "lossless", block: int | float | str | None = "1s",
-                 **options: Any) -> None:
+    def __init__(self, template: AnyMotion, codec: str = "lossless", block: int | float | str | None = None,
+                 key: int | float | str = "10s", **options: Any) -> None:
         self.info = get_codec(codec)
         self.options = self.info.validate(options)
         if template.kind not in self.info.kinds:
@@ -59,8 +75,15 @@ class StreamEncoder:
             raise OptionError("a stream carries marker positions only: compress a C3D file with its analogs and "
                               "parameters as a file (mocapz.compress)")
         self.template = template.slice(0, 0)
-        self.block = blocking.block_frames(block, template.frame_rate, 1.0) or 1
+        self.block = default_block(template.frame_rate) if block is None \
+            else blocking.block_frames(block, template.frame_rate, 1.0) or 1
         self.history = max(int(round(HISTORY_S * template.frame_rate)), 2)
+        key_frames = blocking.block_frames(key, template.frame_rate, 0.0)
+        self.key = max(1, round(key_frames / self.block))  # blocks from one that decodes alone to the next
+        self.kept: dict[str, Any] = {}  # what the codec keeps from block to block (cache["stream"])
+        self.before: np.ndarray | None = None  # the last frame as decoded (the next block continues from it)
+        self.header: ClipHeader | None = None  # the decoder's header (the layout as written)
+        self.blocks = 0
         self.pending: list[np.ndarray] = []
         self.past = template.values[:0]  # the last frames before the pending ones (context)
         empty = ErrorMetric(self.template)  # their positions (frames, points, 3) and present samples
@@ -108,7 +131,9 @@ class StreamEncoder:
         if self.started:
             return b""
         self.started = True
-        head = framing.header_bytes(self.info.name, self.info.version, encode_layout(self.template))
+        layout = encode_layout(self.template)
+        self.header = decode_header(layout)
+        head = framing.header_bytes(self.info.name, self.info.version, layout)
         self.crc = zlib.crc32(head)
         return head
 
@@ -125,10 +150,22 @@ class StreamEncoder:
         lo = max(a - 2, 0)
         self.energy += float(acceleration_energy(pos[lo:b], ok[lo:b])[0].sum())
         # the clip so far, as the block's correction sees it: energy up to the block's end, the allowance spent
-        cache = {"positions": (pos, ok), "energy": (self.energy, b), "jitter_spent": self.spent}
+        cache = {"positions": (pos, ok), "energy": (self.energy, b), "jitter_spent": self.spent, "stream": self.kept}
+        if self.blocks % self.key:
+            cache["before"] = self.before
+        else:
+            cache["key"] = True  # a block that decodes alone: what the codec keeps from block to block starts anew
         piece = window.slice(a, b)
         piece = replace(piece, metadata={**piece.metadata, "block_of": BlockOf(window, a, b, cache)})
         sections = self.info.encode(piece, **self.options)
+        if cache.get("continued"):
+            sections[CONTINUES] = b""
+        # the block as the decoder will see it: its last frame is what the next block continues from
+        assert self.header is not None
+        with decoder_errors(self.info.name, None):
+            decoded = blocking.decode_block(self.info.decode, sections, self.header, len(rows), self.before)
+        self.before = blocking.last_frame(decoded)
+        self.blocks += 1
         self.spent = float(cache.get("jitter_spent", self.spent))
         self.past = np.concatenate([past, rows])[-self.history:]
         self.past_pos, self.past_ok = pos[-self.history:], ok[-self.history:]
@@ -148,6 +185,7 @@ class StreamDecoder:
         self.header: ClipHeader | None = None
         self.info = None
         self.frames = 0
+        self.before: np.ndarray | None = None  # the last frame decoded (a block may continue from it)
 
     def feed(self, data: bytes) -> list[AnyMotion]:
         """The motions of the blocks ``data`` completes (FormatError naming the stream if damaged)."""
@@ -159,9 +197,9 @@ class StreamDecoder:
         for frames, sections in blocks:
             header = self._header()
             with decoder_errors(self.reader.stream.codec, self.path):  # type: ignore[union-attr]
-                motion = self.info.decode(sections, replace(header, frames=frames))  # type: ignore[union-attr]
-                if motion.n_frames != frames:
-                    raise ValueError(f"a block decoded to {motion.n_frames} frames, not {frames}")
+                motion = blocking.decode_block(self.info.decode, sections, header, frames,  # type: ignore[union-attr]
+                                               self.before)
+            self.before = blocking.last_frame(motion)
             self.frames += frames
             out.append(motion)
         return out

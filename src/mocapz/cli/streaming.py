@@ -82,7 +82,7 @@ def _encoder(template: Any, first: list[np.ndarray], codec: str, block: str | No
     from mocapz.stream import StreamEncoder
 
     rows = np.concatenate(first) if first else template.channels
-    return StreamEncoder(with_decimals(template, rows), codec, "1s" if block is None else block, **options)
+    return StreamEncoder(with_decimals(template, rows), codec, block, **options)
 
 
 def _to_file(tmp: Path, run: Any) -> None:

@@ -26,6 +26,7 @@ INDEX = "blk"
 SEPARATOR = ":"
 SAME = "="  # a block's empty section "=name" stands for the previous block's section "name"
 SAME_FROM = 2  # payloads of at least this many bytes are written once when equal (the mark costs about one)
+CONTINUES = "<"  # a block's empty section "<": it decodes from the last frame of the block before it (a stream's)
 
 
 @dataclass(frozen=True)
@@ -76,8 +77,8 @@ def thin(previous: dict[str, bytes] | None, sections: dict[str, bytes]) -> dict[
     equal to the previous block's of the same name become the empty mark ``"=name"``."""
     out = {}
     for name, payload in sections.items():
-        if name.startswith(SAME):
-            raise ValueError(f"section name {name!r} starts with {SAME!r}, which blocks reserve")
+        if name.startswith(SAME) or (name == CONTINUES and payload):
+            raise ValueError(f"section name {name!r}: blocks reserve it")
         same = previous is not None and len(payload) >= SAME_FROM and previous.get(name) == payload
         out[SAME + name if same else name] = b"" if same else payload
     return out

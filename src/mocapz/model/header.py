@@ -40,6 +40,8 @@ class ClipHeader:
         metadata: the source metadata a writer needs (:data:`KEPT_METADATA`).
         quantum: marker clips: the source's storage step (integer C3D: ``|POINT:SCALE|``), else ``None``;
             a motion made by :meth:`motion` keeps it only if its values are multiples of it.
+        before: a block of a stream that continues the block before it: that block's decoded values of its
+            last frame, ``(columns,)`` (the values of :attr:`value_shape`'s last axes, flattened); else ``None``.
     """
 
     kind: Literal["skeleton", "markers"]
@@ -53,6 +55,7 @@ class ClipHeader:
     decimals: Any = None
     metadata: dict[str, Any] = field(default_factory=dict)
     quantum: float | None = None
+    before: np.ndarray | None = field(default=None, compare=False, repr=False)
 
     @classmethod
     def of(cls, motion: AnyMotion) -> ClipHeader:

@@ -92,6 +92,13 @@ def layout(motion: AnyMotion, positions: np.ndarray, levers: np.ndarray | None =
     return Layout(group, acts, t_safe, moving)
 
 
+def covers(kept: Layout, lay: Layout) -> bool:
+    """Whether layout ``kept`` (of other frames of the clip) is safe for the frames of ``lay``: its tolerances
+    are as tight (to a millionth: the levers' float rounding) and it moves every column ``lay`` moves."""
+    return kept.t_safe.shape == lay.t_safe.shape and bool(np.all(kept.t_safe <= lay.t_safe * (1.0 + 1e-6))) \
+        and bool(np.all(kept.moving | ~lay.moving)) and np.array_equal(kept.acts, lay.acts)
+
+
 def safe_levels(lay: Layout, bound: np.ndarray, e_max: float, relax: float = RELAX) -> np.ndarray:
     """``(frames, groups)`` levels at which the worst-case sum keeps every point ``p`` within
     ``bound[t, p]``, for base tolerances ``relax * t_safe * e_max``."""

@@ -103,7 +103,7 @@ class Chain:
         return out
 
     def quantise(self, x: np.ndarray, base: np.ndarray, tol: np.ndarray | ColumnTolerances, levels: int,
-                 shrink: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                 shrink: float, prefix: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """:func:`~mocapz.codecs.correction.lifting.quantise` in closed loop: the residual of every feedback
         joint's rotation columns is taken against the decoded parent; ``x`` ``(frames, columns)`` is the plain
         residual (original minus ``base``, wrapped) used for every other column, and the feedback joints'
@@ -115,10 +115,11 @@ class Chain:
         sites: the loop has composed them already). A joint's decoded global rotations are kept only while a
         joint or end site below it needs them. With the compiled kernels the decoded residual is the loop's own
         array, kept for the next call on the same ``x`` and ``base`` (which updates it in place): callers do
-        not change it, and let it go before that call (or :meth:`forget` first)."""
+        not change it, and let it go before that call (or :meth:`forget` first). ``prefix`` ``(columns,)``: a
+        continued clip's (:func:`~mocapz.codecs.correction.lifting.quantise`)."""
         sk = self.skeleton
         frames, cols = x.shape
-        _, n = lifting.plan(frames, levels)
+        _, n = lifting.plan(frames + (prefix is not None), levels)
         q = np.zeros((n, cols), dtype=np.int64)
         kern = kernels(max(frames, self.work))
         compiled = kern is not None
@@ -140,7 +141,8 @@ class Chain:
             plain = self.plain[j]
             changed = np.zeros((frames, sl.stop - sl.start), dtype=bool)  # the joint's decoded values that moved
             if plain.size:  # translations, and rotations coded against their own original
-                _put(q, y, plain, *lifting.quantise(x[:, plain], tol[:, plain], levels, shrink, compiled), changed,
+                _put(q, y, plain, *lifting.quantise(x[:, plain], tol[:, plain], levels, shrink, compiled,
+                                                    None if prefix is None else prefix[plain]), changed,
                      sl.start, again)
             trans = self._translation(j, base[:, sl] + y[:, sl])
             if kern is not None:
@@ -151,7 +153,8 @@ class Chain:
             moved_p.append(own if p < 0 else own | moved_p[p] | moved_g[p])
             if rot is not None:
                 self._goal_residual(j, gp, p_dec, kern, base, x, moved_p[j] | moved_g[p])
-                _put(q, y, rot, *lifting.quantise(x[:, rot], tol[:, rot], levels, shrink, compiled), changed,
+                _put(q, y, rot, *lifting.quantise(x[:, rot], tol[:, rot], levels, shrink, compiled,
+                                                    None if prefix is None else prefix[rot]), changed,
                      sl.start, again)
             # the decoded global rotation, on every frame (a few products per frame), and where it may have moved
             own = _moved(changed, np.arange(sl.start, sl.stop) if self.euler3[j] is None else self.euler3[j],

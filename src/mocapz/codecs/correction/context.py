@@ -17,6 +17,7 @@ from typing import Any
 
 import numpy as np
 
+from mocapz.codecs.correction.bounds import Layout, covers
 from mocapz.codecs.target import ErrorMetric
 from mocapz.metrics.contacts import Contacts, find_contacts
 from mocapz.metrics.figures import frame_chunks
@@ -89,3 +90,46 @@ def spend(ctx: BlockOf | None, added: float) -> None:
     """Record the acceleration energy the block's chosen correction added (blocks are encoded in order)."""
     if ctx is not None:
         ctx.cache["jitter_spent"] = ctx.cache.get("jitter_spent", 0.0) + max(added, 0.0)
+
+
+def continued(ctx: BlockOf | None) -> np.ndarray | None:
+    """A stream's block after the one before it: the decoded values ``(columns,)`` of the frame before the block
+    (:class:`mocapz.StreamEncoder` sets ``cache["before"]``), else None."""
+    return None if ctx is None else ctx.cache.get("before")
+
+
+def prefix(before: np.ndarray, rot: np.ndarray, period: float) -> np.ndarray:
+    """The first knot ``(columns,)`` of a continued block coded on a zero base (the correction alone): the decoded
+    values of the frame before it (rotations wrapped into their turn, as the block's values are; NaN where a value
+    is missing or not finite). The encoder and the decoder compute it alike from the decoded frame. (On a model
+    base the residual of that frame is not the block's: the model's own first knot codes smaller there.)"""
+    r = np.array(before, dtype=np.float64)
+    if rot.any():
+        half = period / 2
+        r[rot] = np.mod(r[rot] + half, period) - half
+    return np.where(np.isfinite(r), r + 0.0, np.nan)
+
+
+def kept_layout(ctx: BlockOf, lay: Layout) -> Layout:
+    """A stream's block's column layout: the one a block before it used, where that is safe for this block's
+    frames (:func:`~.bounds.covers`: the tolerance codes then repeat, and are written once), else its own, kept
+    for the blocks after it (in ``cache["stream"]``, which lasts the stream); a file's block's own."""
+    kept = ctx.cache.get("stream")
+    if kept is None:
+        return lay
+    old = kept.get("layout")
+    if old is not None and covers(old, lay):
+        return old
+    kept["layout"] = lay
+    return lay
+
+
+def body_height(a: np.ndarray, valid: np.ndarray) -> float:
+    """Median over frames of the body's largest extent (file units; 1 for an empty clip)."""
+    if not a.size:
+        return 1.0
+    big = np.where(valid[..., None], a, np.nan)
+    with np.errstate(invalid="ignore"):
+        ext = np.nanmax(np.nanmax(big, axis=1) - np.nanmin(big, axis=1), axis=1)
+    h = float(np.nanmedian(ext)) if np.isfinite(ext).any() else 1.0
+    return h if h > 0 else 1.0

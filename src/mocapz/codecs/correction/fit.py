@@ -100,6 +100,9 @@ class Clip:
             self.chain = Chain(motion, self.positions, fk[1])  # keeps the feedback joints' rotations only
         del fk  # the other joints' global rotations are not kept (peak memory)
         self.whole = context.block_of(motion)  # the clip this is a block of: decide as on the whole clip
+        # a stream's block continuing the one before it (short layout, zero base): the frame before, its first knot
+        self.before = None if window.seekable(motion.n_frames) else context.continued(self.whole)
+        self._zero: np.ndarray | None = None  # the zero base (:meth:`zero_base`)
         # frames of the whole job (a block's clip, a stream's window): whether the compiled kernels pay for loading
         self.work = motion.n_frames if self.whole is None else max(motion.n_frames, self.whole.clip.n_frames)
         if self.chain is not None:
@@ -114,8 +117,8 @@ class Clip:
             with warnings.catch_warnings():  # markers missing in every frame
                 warnings.simplefilter("ignore", RuntimeWarning)
                 self.contacts = find_contacts(motion, self.positions, self.valid, motion.unit_cm)
-        self.body = body_height(self.positions, self.valid) if self.whole is None \
-            else context.cached(self.whole, "body", body_height)
+        self.body = context.body_height(self.positions, self.valid) if self.whole is None \
+            else context.cached(self.whole, "body", context.body_height)
 
     def _layout(self) -> bounds.Layout:
         """The clip's layout; a block's is the whole clip's (its levers and moving columns: safe for every
@@ -125,8 +128,8 @@ class Clip:
             return bounds.layout(self.motion, self.positions,
                                  chain.levers(self.motion.channels) if chain is not None else None)
         clip = whole.clip
-        return context.cached(whole, "layout", lambda pos, _: bounds.layout(
-            clip, pos, chain.levers(clip.channels) if chain is not None else None))
+        return context.kept_layout(whole, context.cached(whole, "layout", lambda pos, _: bounds.layout(
+            clip, pos, chain.levers(clip.channels) if chain is not None else None)))
 
     def smooth_up_to(self) -> float:
         """The largest bound at which the added jitter is held under :data:`JITTER` (file units): 2 cm, or
@@ -222,10 +225,24 @@ class Clip:
         tolerances dense or per column): in closed loop down the hierarchy for skeletons (:mod:`.chain`, which
         writes the feedback joints' residuals into ``x``). Returns the integers, the decoded residual (not to be
         changed: the closed loop keeps it for its next call) and the decoded positions ``(frames, points, 3)``."""
+        prefix = self.prefix_of(base)
         if self.chain is not None:
-            return self.chain.quantise(x, base, tol, depth, self.shrink)
-        q, y = lifting.quantise(x, np.asarray(tol), depth, self.shrink, kernels(self.work, "liftkernels") is not None)
+            return self.chain.quantise(x, base, tol, depth, self.shrink, prefix)
+        q, y = lifting.quantise(x, np.asarray(tol), depth, self.shrink, kernels(self.work, "liftkernels") is not None,
+                                prefix)
         return q, y, self.positions_of(base + y)
+
+    def zero_base(self) -> np.ndarray:
+        """The zero base ``(frames, columns)``: a read-only view of one zero (no frames x columns array)."""
+        self._zero = np.broadcast_to(np.zeros((), self.values.dtype), self.values.shape) if self._zero is None \
+            else self._zero
+        return self._zero
+
+    def prefix_of(self, base: np.ndarray) -> np.ndarray | None:
+        """A continued block's first knot on ``base`` (:func:`.context.prefix`; the zero base only), else None."""
+        if self.before is None or base is not self._zero:
+            return None
+        return context.prefix(self.before, self.rot, self.period)
 
     def positions_of(self, values: np.ndarray) -> np.ndarray:
         """Positions ``(frames, points, 3)`` of decoded values ``(frames, columns)``."""
@@ -243,17 +260,6 @@ class Clip:
         t_safe = self.layout.t_safe[self.layout.moving]
         per_col = np.where(np.isfinite(t_safe), quantum / t_safe * bounds.SAFETY, 0.0)
         return float(per_col.max(initial=0.0))
-
-
-def body_height(a: np.ndarray, valid: np.ndarray) -> float:
-    """Median over frames of the body's largest extent (file units; 1 for an empty clip)."""
-    if not a.size:
-        return 1.0
-    big = np.where(valid[..., None], a, np.nan)
-    with np.errstate(invalid="ignore"):
-        ext = np.nanmax(np.nanmax(big, axis=1) - np.nanmin(big, axis=1), axis=1)
-    h = float(np.nanmedian(ext)) if np.isfinite(ext).any() else 1.0
-    return h if h > 0 else 1.0
 
 
 def fit(clip: Clip, base: np.ndarray, e: float, relax_by: float = bounds.RELAX, depth: int | None = None) -> Correction:
@@ -289,7 +295,7 @@ def fit(clip: Clip, base: np.ndarray, e: float, relax_by: float = bounds.RELAX, 
         "c.codes": pack_uint64(codes.astype(np.uint64)),
         "c.levels": window.pack_levels(levels, frames, depth) if seek
         else encode_int_matrix(np.diff(levels, axis=0, prepend=0)),
-        "c.res": window.pack_res(q, frames, depth) if seek else lifting.pack(q, frames, depth),
+        "c.res": window.pack_res(q, frames, depth) if seek else lifting.pack(q, frames, depth, clip.prefix_of(base)),
     }
     size = sum(len(v) + 8 for v in sections.values())
     return Correction(sections, size, errors, e, jit, added, depth, settled)

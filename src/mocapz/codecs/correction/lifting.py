@@ -69,29 +69,41 @@ def _predict(y: np.ndarray, h: int) -> tuple[slice, np.ndarray]:
 
 
 def quantise(x: np.ndarray, tol: np.ndarray, levels: int, shrink: float = 1.0,
-             compiled: bool | None = None) -> tuple[np.ndarray, np.ndarray]:
+             compiled: bool | None = None, prefix: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Quantise residual ``x`` ``(frames, columns)`` within ``tol`` ``(frames, columns)`` (> 0, ``BIG`` =
     free), level ``l`` within ``tol * shrink ** l``.
 
     Returns the integers ``(padded frames, columns)`` (coarse knot differences, then the details level by
     level) and the decoded residual ``(frames, columns)`` (what :func:`decode` gives). ``compiled``: code the
     details with the compiled kernel (:mod:`.liftkernels`, the same bits), None: when it is worth loading.
+    ``prefix`` ``(columns,)``: a continued clip (a stream's block after the one before it): the decoded value of
+    the frame before the first, known to the decoder, is the first knot (:func:`grid`); the integers' first row
+    is then zero and not stored (:func:`pack`), but on the columns where the prefix is NaN (a marker missing in
+    that frame), whose first knot is coded as in a clip of its own.
     """
     frames, cols = x.shape
-    lv, n = plan(frames, levels)
+    x, tol = grid(x, prefix), grid(tol, prefix)
+    lv, n = plan(x.shape[0], levels)
     xp, tp = _pad(x, n), _pad(np.minimum(tol, BIG), n)
     y = np.zeros((n, cols))
     span = 1 << lv
     step0 = 2.0 * level_factor(lv, shrink) * tp[::span].min(axis=0)  # (columns,)
-    q0 = np.round(xp[::span] / step0).astype(np.int64)
-    y[::span] = q0 * step0
+    if prefix is None:
+        q0 = np.round(xp[::span] / step0).astype(np.int64)
+        y[::span] = q0 * step0
+    else:
+        origin = _origin(prefix)
+        q0 = np.round((xp[::span] - origin) / step0).astype(np.int64)
+        q0[0, ~np.isnan(prefix)] = 0
+        y[::span] = origin + q0 * step0
+    rows = slice(0, frames) if prefix is None else slice(1, frames + 1)
     kern = kernels(frames, "liftkernels") if compiled is None else (kernels(0, "liftkernels") if compiled else None)
     if kern is not None and lv and np.isfinite(xp).all():
         q = np.empty((n, cols), dtype=np.int64)
         q[:len(q0)] = np.diff(q0, axis=0, prepend=0)
         factors = np.array([level_factor(level, shrink) for level in range(lv)])
         kern.details(np.ascontiguousarray(xp), np.ascontiguousarray(tp), y, q, lv, factors, STEP, len(q0))
-        return q, y[:frames]
+        return q, y[rows]
     parts = [np.diff(q0, axis=0, prepend=0)]
     for level in range(lv - 1, -1, -1):
         h = 1 << level
@@ -102,7 +114,14 @@ def quantise(x: np.ndarray, tol: np.ndarray, levels: int, shrink: float = 1.0,
         q = (np.sign(d) * np.ceil(np.maximum(np.abs(d) - t, 0.0) / step)).astype(np.int64)
         y[idx] = pred + q * step
         parts.append(q)
-    return np.concatenate(parts), y[:frames]
+    return np.concatenate(parts), y[rows]
+
+
+def grid(a: np.ndarray, prefix: np.ndarray | None) -> np.ndarray:
+    """The rows the lifting runs on: ``a`` ``(frames, ...)`` itself, or for a continued clip (``prefix`` given) a
+    row before the first, standing for the frame before the clip (a copy of the first row: its tolerance or
+    level, which :func:`quantise` and :func:`decode` both use for the knots' step)."""
+    return a if prefix is None else np.concatenate([a[:1], a])
 
 
 def row_groups(frames: int, levels: int) -> list[int]:
@@ -117,21 +136,36 @@ FIRST_APART = 2  # layout flag: the knots' first row (absolute values, the rest 
 # of its own (its magnitudes would widen the scales of every knot of its columns: a block of a clip pays it each)
 
 
-def _groups(frames: int, levels: int, split: int) -> list[int]:
-    rows = row_groups(frames, levels)
+def _origin(prefix: np.ndarray) -> np.ndarray:
+    """What a continued clip's knots are coded from: the prefix, 0 where it is NaN."""
+    return np.where(np.isnan(prefix), 0.0, prefix)
+
+
+def _groups(frames: int, levels: int, split: int, continued: bool = False) -> list[int]:
+    rows = row_groups(frames + continued, levels)
+    if continued:  # the first knot is the frame before the clip's: not stored
+        rows = [rows[0] - 1, *rows[1:]]
     rows = rows if split & SPLIT_LEVELS else [rows[0], sum(rows[1:])]
     return [1, rows[0] - 1, *rows[1:]] if split & FIRST_APART and rows[0] > 1 else rows
 
 
-def pack(q: np.ndarray, frames: int, levels: int) -> bytes:
+def pack(q: np.ndarray, frames: int, levels: int, prefix: np.ndarray | None = None) -> bytes:
     """The bytes of the integers of :func:`quantise` for a clip of ``frames`` frames: a layout byte, then range
     coded streams each after its uvarint byte length: the coarse knots (time differences, the first row
     absolute; the first row a stream of its own where that is smaller), then the details, all levels in one
     stream or one stream per level, whichever is smaller (the levels' magnitudes differ by orders and one
     stream's adaptive scales mix them; each stream costs scales per column, which a short clip or block may not
-    win back)."""
+    win back). ``prefix``: a continued clip's (:func:`quantise`): the integers' first row is stored only where
+    the prefix is NaN, as a stream of its own first (if any)."""
     if not q.shape[1]:
         return b""
+    continued, head = prefix is not None, b""
+    if prefix is not None:
+        free = np.isnan(prefix)
+        if free.any():
+            b = encode_int_matrix(q[:1, free])
+            head = write_uvarint(len(b)) + b
+        q = q[1:]
     coded: dict[tuple[int, int], bytes] = {}  # each stream once: (first row, rows) -> its bytes
 
     def part(pos: int, rows: int) -> bytes:
@@ -140,28 +174,40 @@ def pack(q: np.ndarray, frames: int, levels: int) -> bytes:
         return coded[pos, rows]
 
     def layout(split: int) -> bytes:
-        out, pos = bytearray([split]), 0
-        for rows in _groups(frames, levels, split):
+        out, pos = bytearray([split]) + head, 0
+        for rows in _groups(frames, levels, split, continued):
             b = part(pos, rows)
             out += write_uvarint(len(b)) + b
             pos += rows
         return bytes(out)
 
     knots = row_groups(frames, levels)[0]
-    first = FIRST_APART if knots > 1 and len(part(0, 1)) + len(part(1, knots - 1)) < len(part(0, knots)) else 0
+    first = FIRST_APART if not continued and knots > 1 \
+        and len(part(0, 1)) + len(part(1, knots - 1)) < len(part(0, knots)) else 0
     return min((layout(first | split) for split in (SPLIT_TWO, SPLIT_LEVELS)), key=len)
 
 
-def read(data: bytes, frames: int, cols: int, levels: int) -> np.ndarray:
+def read(data: bytes, frames: int, cols: int, levels: int, prefix: np.ndarray | None = None) -> np.ndarray:
     """The integers of :func:`pack` for a clip of ``frames`` x ``cols`` values (each stream's shape is checked
-    before anything is allocated)."""
+    before anything is allocated), for a continued clip the same ``prefix``."""
+    continued = prefix is not None
     if cols == 0:
         return np.zeros((0, 0), dtype=np.int64)
     if not data or data[0] > SPLIT_LEVELS | FIRST_APART \
-            or (data[0] & FIRST_APART and row_groups(frames, levels)[0] < 2):
+            or (data[0] & FIRST_APART and (continued or row_groups(frames, levels)[0] < 2)):
         raise FormatError(None, "corrupted correction stream (layout)")
     parts, pos = [], 1
-    for rows in _groups(frames, levels, data[0]):
+    if prefix is not None:
+        free = np.isnan(prefix)
+        row0 = np.zeros((1, cols), dtype=np.int64)
+        if free.any():
+            size, pos = read_uvarint(data, pos)
+            if pos + size > len(data):
+                raise FormatError(None, "corrupted correction stream (part length)")
+            row0[:, free] = decode_int_matrix(data[pos:pos + size], (1, int(free.sum())))
+            pos += size
+        parts.append(row0)
+    for rows in _groups(frames, levels, data[0], continued):
         size, pos = read_uvarint(data, pos)
         if pos + size > len(data):
             raise FormatError(None, "corrupted correction stream (part length)")
@@ -172,19 +218,27 @@ def read(data: bytes, frames: int, cols: int, levels: int) -> np.ndarray:
     return np.concatenate(parts)
 
 
-def decode(q_all: np.ndarray, tol: np.ndarray, levels: int, shrink: float = 1.0) -> np.ndarray:
+def decode(q_all: np.ndarray, tol: np.ndarray, levels: int, shrink: float = 1.0,
+           prefix: np.ndarray | None = None) -> np.ndarray:
     """Inverse of :func:`quantise`: the decoded residual ``(frames, columns)`` from the integers (:func:`read`)
-    and the same ``tol``, ``levels`` and ``shrink``."""
-    frames, cols = tol.shape
+    and the same ``tol``, ``levels``, ``shrink`` and ``prefix``."""
+    return _decode_grid(q_all, grid(tol, prefix), levels, shrink, prefix)
+
+
+def _decode_grid(q_all: np.ndarray, tol: np.ndarray, levels: int, shrink: float, prefix: np.ndarray | None
+                 ) -> np.ndarray:
+    """:func:`decode` from the tolerances of the lifting's rows (:func:`grid`)."""
+    n_rows, cols = tol.shape
+    rows = slice(0, n_rows) if prefix is None else slice(1, n_rows)
     if cols == 0:
-        return np.zeros((frames, 0))
-    lv, n = plan(frames, levels)
+        return np.zeros((rows.stop - rows.start, 0))
+    lv, n = plan(n_rows, levels)
     tp = _pad(np.minimum(tol, BIG), n)
     span = 1 << lv
     n0 = len(range(0, n, span))
     y = np.zeros((n, cols))
     step0 = 2.0 * level_factor(lv, shrink) * tp[::span].min(axis=0)
-    y[::span] = np.cumsum(q_all[:n0], axis=0) * step0
+    y[::span] = _knots(q_all[:n0], step0, prefix)
     pos = n0
     for level in range(lv - 1, -1, -1):
         h = 1 << level
@@ -195,28 +249,37 @@ def decode(q_all: np.ndarray, tol: np.ndarray, levels: int, shrink: float = 1.0)
             raise FormatError(None, "corrupted correction stream (detail count)")
         y[idx] = pred + q * (STEP * level_factor(level, shrink) * tp[idx])
         pos += m
-    return y[:frames]
+    return y[rows]
+
+
+def _knots(q: np.ndarray, step: np.ndarray, prefix: np.ndarray | None) -> np.ndarray:
+    """The decoded knots from their integers' time differences ``q`` ``(knots, columns)`` and step ``(columns,)``
+    (a continued clip's from the prefix, its first knot)."""
+    if prefix is None:
+        return np.cumsum(q, axis=0) * step
+    return _origin(prefix) + np.cumsum(q, axis=0) * step
 
 
 def decode_table(q_all: np.ndarray, tol_col: np.ndarray, halves: np.ndarray, lev: np.ndarray, groups: np.ndarray,
-                 levels: int, shrink: float = 1.0) -> np.ndarray:
+                 levels: int, shrink: float = 1.0, prefix: np.ndarray | None = None) -> np.ndarray:
     """:func:`decode` with ``tol = tol_col[None, :] * halves[lev][:, groups]`` (``tol_col`` ``(columns,)``, a
     table ``halves``, indices ``lev`` ``(frames, groups)`` into it and ``groups`` ``(columns,)`` into ``lev``'s
     columns): the same bits. The compiled kernel (when loaded) reads the tolerances from the table, without a
     frames x columns array of them."""
+    lev = grid(lev, prefix)
     frames, cols = lev.shape[0], groups.size
     lv, n = plan(frames, levels)
     kern = kernels(frames, "liftkernels") if cols and lv and q_all.shape[0] >= n else None
     if kern is None:
-        return decode(q_all, tol_col[None, :] * halves[lev][:, groups], levels, shrink)
+        return _decode_grid(q_all, tol_col[None, :] * halves[lev][:, groups], levels, shrink, prefix)
     span = 1 << lv
     n0 = len(range(0, n, span))
     rows = np.minimum(np.arange(n0) * span, frames - 1)  # the knots (the last may lie in the padding)
     knots = np.minimum(tol_col[None, :] * halves[lev[rows]][:, groups], BIG)
     y = np.empty((n, cols))  # every row is written: the knots here, the details by the kernel
-    y[::span] = np.cumsum(q_all[:n0], axis=0) * (2.0 * level_factor(lv, shrink) * knots.min(axis=0))
+    y[::span] = _knots(q_all[:n0], 2.0 * level_factor(lv, shrink) * knots.min(axis=0), prefix)
     factors = np.array([level_factor(level, shrink) for level in range(lv)])
     kern.decode_details(np.ascontiguousarray(q_all, dtype=np.int64), np.ascontiguousarray(tol_col, dtype=np.float64),
                         np.ascontiguousarray(halves, dtype=np.float64), np.ascontiguousarray(lev, dtype=np.int64),
                         np.ascontiguousarray(groups, dtype=np.int64), y, lv, factors, STEP, n0, frames, BIG)
-    return y[:frames]
+    return y[:frames] if prefix is None else y[1:frames]

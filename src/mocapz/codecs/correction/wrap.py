@@ -43,6 +43,7 @@ DEFAULT_ERROR_CM = 1.0  # the default target (codecs.target.DEFAULT_TARGET_TEXT)
 # when the length unit is unknown
 FORMAT = 2  # 1: every lifting level within the whole tolerance; 2: a shrink factor per level (c.head)
 SEEKABLE = 3  # 2's integers with the streams laid out for random access (clips of window.SEEK_MIN frames and more)
+CONTINUED = 4  # 2's with the frame before the clip as its first knot (a stream's block after the one before it)
 BASE_NONE, BASE_MODEL = 0, 1
 ROWS = 512  # rows per chunk of the wrap-around pass
 
@@ -122,8 +123,7 @@ def corrected(encode: Encoder, decode: Decoder, codec: str, declared: tuple[Opti
         if zero_base and not fixed:
             zero = {"c.gaps": pack_mask(motion.missing)} if isinstance(motion, MarkerMotion) \
                 and motion.missing.any() else {}
-            # zeros as a read-only view of one value: no frames x columns array kept for the zero base
-            tried.append((BASE_NONE, zero, np.broadcast_to(np.zeros((), dtype=clip.values.dtype), clip.values.shape)))
+            tried.append((BASE_NONE, zero, clip.zero_base()))
         best, cor = search_bases(clip, [t[2] for t in tried], [_size(t[1]) for t in tried], target,
                                  effort=options.get("effort") or "default")
         kind, base_sections, _ = tried[best]
@@ -133,7 +133,11 @@ def corrected(encode: Encoder, decode: Decoder, codec: str, declared: tuple[Opti
                               f"{cor.errors.distortion_pct:.4g} %, max error {cor.errors.max_error:.4g} file units "
                               "(the lossless codec gives the values back exactly)")
         context.spend(clip.whole, cor.added)  # a block: what it used of the clip's jitter allowance
-        fmt = SEEKABLE if window.seekable(motion.n_frames) else FORMAT  # as the fit laid the streams out
+        # as the fit laid the streams out
+        continued = clip.prefix_of(tried[best][2]) is not None
+        fmt = SEEKABLE if window.seekable(motion.n_frames) else CONTINUED if continued else FORMAT
+        if continued:
+            clip.whole.cache["continued"] = True  # type: ignore[union-attr]  # the stream marks the block
         head = write_uvarint(fmt) + write_uvarint(kind) + write_uvarint(cor.depth) \
             + write_uvarint(shrink_code(clip.shrink))
         return {**base_sections, "c.head": head, **cor.sections}
@@ -168,12 +172,13 @@ def apply(sections: Sections, header: ClipHeader, decode: Decoder) -> AnyMotion:
         codes = _codes(sections["c.codes"], cols)
         # every stream's shape is checked against the header before a frames x columns array is made
         n_groups = int(groups.max(initial=-1)) + 1
+        prefix = None if fmt != CONTINUED else _prefix(header, kind)
         if fmt == SEEKABLE:
             lev = window.read_levels(sections["c.levels"], frames, n_groups)[1]
             q = window.read_res(sections["c.res"], frames, cols, levels)
         else:
             dlev = decode_int_matrix(sections["c.levels"], (frames, n_groups))
-            q = lifting.read(sections["c.res"], frames, cols, levels)
+            q = lifting.read(sections["c.res"], frames, cols, levels, prefix)
             lev = np.cumsum(dlev, axis=0)
             if lev.size and (lev.min() < 0 or lev.max() > 60):
                 raise FormatError(None, "corrupted correction levels")
@@ -186,8 +191,21 @@ def apply(sections: Sections, header: ClipHeader, decode: Decoder) -> AnyMotion:
     # 2 ** (-level / 2) from a table of the levels' values (the same numbers, without a power per value)
     halves = 2.0 ** (-np.arange(int(lev.max(initial=0)) + 1, dtype=np.float64) / 2.0)
     # tol = tol_of(codes)[None, :] * halves[lev][:, groups], read from the table by the compiled kernel
-    y = lifting.decode_table(q, bounds.tol_of(codes), halves, lev, groups, levels, code / 100.0)
+    y = lifting.decode_table(q, bounds.tol_of(codes), halves, lev, groups, levels, code / 100.0, prefix)
     return _add(base_motion, y, header)
+
+
+def _prefix(header: ClipHeader, kind: int) -> np.ndarray:
+    """A continued block's first knot (:func:`.context.prefix`) from the decoded frame before it."""
+    before = header.before
+    if kind != BASE_NONE:
+        raise FormatError(None, "corrupted correction header (a continued block on a model base)")
+    if before is None:
+        raise FormatError(None, "a block that continues the block before it, decoded without it")
+    before = np.asarray(before, dtype=np.float64).reshape(-1)
+    if before.size != header.n_columns:
+        raise FormatError(None, f"the frame before the block has {before.size} values, not {header.n_columns}")
+    return context.prefix(before, header.rotation_mask, header.period)
 
 
 def apply_window(sections: Sections, header: ClipHeader, start: int, stop: int) -> AnyMotion | None:
@@ -222,8 +240,8 @@ def _head(head: bytes) -> tuple[int, int, int, int]:
     kind, pos = read_uvarint(head, pos)
     levels, pos = read_uvarint(head, pos)
     code, pos = read_uvarint(head, pos) if fmt >= 2 else (100, pos)
-    if fmt > SEEKABLE:
-        raise FormatError(None, f"correction format {fmt} is newer than this mocapz reads (up to {SEEKABLE})")
+    if fmt > CONTINUED:
+        raise FormatError(None, f"correction format {fmt} is newer than this mocapz reads (up to {CONTINUED})")
     if fmt < 1 or kind not in (BASE_NONE, BASE_MODEL) or levels > 16 or not 1 <= code <= 100 or pos != len(head):
         raise FormatError(None, "corrupted correction header")
     return fmt, kind, levels, code

@@ -14,7 +14,8 @@ from mocapz.codecs.pga.decode import decode
 from mocapz.codecs.pga.options import OPTIONS
 from mocapz.codecs.pga.ratecontrol import encode
 from mocapz.codecs.target import Target
-from mocapz.model.motion import Motion
+from mocapz.model.header import ClipHeader
+from mocapz.model.motion import AnyMotion, Motion
 
 VERSION = 4  # 2: the correction layer (codecs/correction); 3: the fast IK solver (iksolve), values ~1e-8 rad apart;
 # 4: 2 IK iterations by default (was 6), steps taken only when they lower the cost beyond rounding, Euler
@@ -33,12 +34,27 @@ def _base_options(motion: Motion, options: dict[str, Any], target: Target) -> di
 
 ENCODE, DECODE = corrected(encode, decode, "pga", OPTIONS, _base_options, zero_base=False)
 
+
+def _encode(motion: Motion, **options: Any) -> dict[str, bytes]:
+    """:data:`ENCODE`; a stream's block against the model its key block fitted (:mod:`.streaming`)."""
+    from mocapz.codecs.pga import streaming  # noqa: PLC0415  (it builds on the library mode, which imports this)
+
+    return streaming.encode_block(motion, options) if streaming.in_stream(motion) else ENCODE(motion, **options)
+
+
+def _decode(sections: dict[str, bytes], header: ClipHeader) -> AnyMotion:
+    """:data:`DECODE`, or a stream's block coded against its interval's model."""
+    from mocapz.codecs.pga import streaming  # noqa: PLC0415
+
+    return streaming.decode_block(sections, header) if streaming.is_shared_block(sections) else DECODE(sections, header)
+
+
 INFO = CodecInfo(
     name="pga",
     version=VERSION,
     kinds=("skeleton",),
-    encode=ENCODE,
-    decode=DECODE,
+    encode=_encode,
+    decode=_decode,
     options=OPTIONS,
     summary="skeletal clips: Tournier et al.'s PGA pose model, multiscale trajectories, PGA-based IK decoding",
 )
