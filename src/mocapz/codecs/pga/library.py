@@ -29,7 +29,7 @@ import numpy as np
 
 from mocapz.codecs.correction.wrap import corrected
 from mocapz.codecs.library import LibraryMode, Sections, layout_key
-from mocapz.codecs.pga import DECODE, ENCODE, VERSION, _base_options
+from mocapz.codecs.pga.codec import DECODE, ENCODE, VERSION, _base_options
 from mocapz.codecs.pga.decode import decode as decode_single
 from mocapz.codecs.pga.effectors import find_effectors
 from mocapz.codecs.pga.encode import Prepared, encode_prepared, prepare
