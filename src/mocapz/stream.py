@@ -160,11 +160,15 @@ class StreamEncoder:
         sections = self.info.encode(piece, **self.options)
         if cache.get("continued"):
             sections[CONTINUES] = b""
-        # the block as the decoder will see it: its last frame is what the next block continues from
+        # the block as the decoder will see it: its last frame is what the next block continues from (decoded only
+        # where the next block may continue: not before a key block, nor for a codec that never continues)
         assert self.header is not None
-        with decoder_errors(self.info.name, None):
-            decoded = blocking.decode_block(self.info.decode, sections, self.header, len(rows), self.before)
-        self.before = blocking.last_frame(decoded)
+        if cache.get("continuable") and (self.blocks + 1) % self.key:
+            with decoder_errors(self.info.name, None):
+                decoded = blocking.decode_block(self.info.decode, sections, self.header, len(rows), self.before)
+            self.before = blocking.last_frame(decoded)
+        else:
+            self.before = None
         self.blocks += 1
         self.spent = float(cache.get("jitter_spent", self.spent))
         self.past = np.concatenate([past, rows])[-self.history:]

@@ -138,6 +138,8 @@ def corrected(encode: Encoder, decode: Decoder, codec: str, declared: tuple[Opti
         fmt = SEEKABLE if window.seekable(motion.n_frames) else CONTINUED if continued else FORMAT
         if continued:
             clip.whole.cache["continued"] = True  # type: ignore[union-attr]  # the stream marks the block
+        if clip.whole is not None and zero_base and not fixed and not window.seekable(motion.n_frames):
+            clip.whole.cache["continuable"] = True  # the next block may continue this one (it may take a zero base)
         head = write_uvarint(fmt) + write_uvarint(kind) + write_uvarint(cor.depth) \
             + write_uvarint(shrink_code(clip.shrink))
         return {**base_sections, "c.head": head, **cor.sections}

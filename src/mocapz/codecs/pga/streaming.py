@@ -15,7 +15,7 @@ from __future__ import annotations
 from typing import Any
 
 from mocapz.codecs.correction.context import block_of
-from mocapz.codecs.pga.library import SharedModel, _coder, _prepare, decode_member, fit_shared
+from mocapz.codecs.pga.library import _coder, _prepare, decode_member, fit_shared
 from mocapz.model.header import ClipHeader
 from mocapz.model.motion import AnyMotion
 
@@ -55,4 +55,4 @@ def decode_block(sections: Sections, header: ClipHeader) -> AnyMotion:
     return decode_member(shared, own, header)
 
 
-__all__ = ["SharedModel", "decode_block", "encode_block", "in_stream", "is_shared_block"]
+__all__ = ["decode_block", "encode_block", "in_stream", "is_shared_block"]
