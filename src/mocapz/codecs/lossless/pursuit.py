@@ -3,9 +3,9 @@
 Each column's matching pursuit runs as in :func:`~.predict._pursuit`, step by step, but the steps of all
 columns go together: the scores, the picks, the least-squares solves (numpy's LAPACK gufunc, called once per
 step on the stack of every column's system: the same routine on the same numbers as one call per column),
-the rounding of the coefficients and the exact residuals are batched; what is neither exact nor elementwise
-(the correlations' einsum, the cost's pairwise mean) is still computed column by column with the very calls
-:func:`~.predict._pursuit` makes, so the predictors and coefficients come out identical.
+the rounding of the coefficients, the exact residuals and their costs (exact sums) are batched, and so are the
+next step's correlations (one einsum over the stack: each column's products summed as the single-column einsum
+sums them), so the predictors and coefficients come out identical (tests/test_lossless_speed_equal.py).
 """
 
 from __future__ import annotations
@@ -19,7 +19,6 @@ from mocapz.codecs.lossless.predict import (
     MAX_PREDICTORS,
     PREDICTOR_BITS,
     WINDOW,
-    _cost,
     _lstsq,
 )
 
@@ -44,13 +43,14 @@ def choose_shared(shared: tuple[np.ndarray, np.ndarray, np.ndarray], order: list
     valid = np.arange(WINDOW)[None, :] < size[:, None]
     for i, cand in enumerate(cands):
         pad[i, : len(cand)] = cand
-    cand_rows = [np.asarray(cand, dtype=np.int64)[:, None] for cand in cands]
     rhs = big[pad, cols[:, None]]  # (columns, WINDOW)
     norms = np.sqrt(big[pad, pad]) + 1e-9
     corr = rhs.copy()
     steps = np.minimum(size, MAX_PREDICTORS)
-    best_cost = [_cost(full[c]) for c in cols.tolist()]
-    best: list[tuple[list[int], np.ndarray]] = [([], np.zeros(0, dtype=np.int64)) for _ in todo]
+    best_cost = _costs(full[cols])
+    best_n = np.zeros(n_col, dtype=np.int64)  # each column's best prefix: its length, members and coefficients
+    best_members = np.zeros((n_col, MAX_PREDICTORS), dtype=np.int64)
+    best_coef = np.zeros((n_col, MAX_PREDICTORS), dtype=np.int64)
     chosen = np.zeros((n_col, MAX_PREDICTORS), dtype=np.int64)
     active = np.ones(n_col, dtype=bool)
     for step in range(MAX_PREDICTORS):
@@ -79,24 +79,32 @@ def choose_shared(shared: tuple[np.ndarray, np.ndarray, np.ndarray], order: list
         for m in range(1, n):
             acc += full[members[:, m]] * weights[:, m : m + 1]
         resid = full[cols[idx]] - acc
-        finite = np.isfinite(sol).all(axis=1).tolist()
-        for a, i in enumerate(idx.tolist()):
-            if not finite[a]:  # the wrapper's own error or numbers
-                sol_i = _lstsq(np.ascontiguousarray(sub[a]), np.ascontiguousarray(b[a]))
-                coef_i = np.minimum(np.maximum(np.round(sol_i * (1 << COEF_SHIFT)), -COEF_LIMIT), COEF_LIMIT)
-                coef[a] = coef_i.astype(np.int64)
-                resid[a] = full[cols[i]] - np.einsum("ki,k->i", full[members[a]], coef[a] / float(1 << COEF_SHIFT),
-                                                     optimize=False)
-            else:
-                sol_i = sol[a].copy()
-            cand = cands[i]
-            if step + 1 < steps[i]:
-                gram_cols = big[cand_rows[i], members[a]]  # as big[np.ix_(cand, members)]
-                corr[i, : len(cand)] = rhs[i, : len(cand)] - np.einsum("jk,k->j", gram_cols, sol_i, optimize=False)
-            cost = _cost(resid[a]) + PREDICTOR_BITS * n
-            if cost < best_cost[i]:
-                best_cost[i] = cost
-                best[i] = (members[a].tolist(), coef[a].copy())
+        for a in np.flatnonzero(~np.isfinite(sol).all(axis=1)).tolist():  # the wrapper's own error or numbers
+            sol[a] = _lstsq(np.ascontiguousarray(sub[a]), np.ascontiguousarray(b[a]))
+            coef[a] = np.minimum(np.maximum(np.round(sol[a] * (1 << COEF_SHIFT)), -COEF_LIMIT), COEF_LIMIT)
+            resid[a] = full[cols[idx[a]]] - np.einsum("ki,k->i", full[members[a]], coef[a] / float(1 << COEF_SHIFT),
+                                                      optimize=False)
+        more = step + 1 < steps[idx]  # the correlations of the next step (einsum per column, batched: the same sums)
+        if more.any():
+            gram_cols = big[pad[idx[more]][:, :, None], members[more][:, None, :]]  # (a, WINDOW, n)
+            corr[idx[more]] = rhs[idx[more]] - np.einsum("ajk,ak->aj", gram_cols, sol[more], optimize=False)
+        cost = _costs(resid) + PREDICTOR_BITS * n
+        better = cost < best_cost[idx]
+        won = idx[better]
+        best_cost[won] = cost[better]
+        best_n[won] = n
+        best_members[won, :n] = members[better]
+        best_coef[won, :n] = coef[better]
+    best = [(best_members[i, : best_n[i]].tolist(), best_coef[i, : best_n[i]].copy()) for i in range(n_col)]
     for i, k in enumerate(todo):
         table[k] = best[i]
     return table
+
+
+def _costs(r: np.ndarray) -> np.ndarray:
+    """:func:`~.predict._cost` of every row of ``r`` ``(columns, rows)`` at once: the same numbers (the sums of
+    absolute residuals are exact, and ``log2`` gives the same values on an array as on one number)."""
+    if not r.shape[1]:
+        return np.zeros(r.shape[0])
+    mean = np.add.reduce(np.abs(r), axis=1) / np.float64(r.shape[1])
+    return r.shape[1] * np.log2(mean + 1.0)
