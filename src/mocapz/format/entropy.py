@@ -10,10 +10,13 @@ wrote it, so either side can read both kinds when its coder is present.
 
 from __future__ import annotations
 
+import sys
+from types import ModuleType
 from typing import Any
 
 import numpy as np
 
+from mocapz import _jit
 from mocapz.errors import FormatError
 from mocapz.format.planes import (  # noqa: F401  (re-exported: the integer streams' public helpers)
     MAX_COUNT,
@@ -52,6 +55,7 @@ QUARTER_BIAS = 32  # CODER_RANGE_DELTA's scales: s = 2 ** ((q - 32) / 4), q in 0
 QUARTER_TOP = 127
 DELTA_SCALES = (0.5, 1.0, 2.0, 4.0, 8.0, 16.0)  # Laplace scales of the scale codes' differences (one byte picks)
 CHUNK_VALUES = 1 << 16  # values range coded per call of the coder (its per-value arrays: peak memory)
+LAZY_VALUES = 1 << 20  # values decoded in one stream from which numba is loaded for the range decoder
 
 
 _DELTA_MODEL = constriction.stream.model.QuantizedLaplace(-DELTA_LIMIT, DELTA_LIMIT) if HAVE_CONSTRICTION else None
@@ -193,10 +197,10 @@ def _encode_scale_codes(enc: Any, q: np.ndarray, pick: int) -> None:
     enc.encode(diffs.astype(np.int32), _DELTA_MODEL, np.zeros(diffs.size), np.full(diffs.size, DELTA_SCALES[pick]))
 
 
-def _decode_scale_codes(dec: Any, pick: int, nb: int, cols: int) -> np.ndarray:
+def _decode_scale_codes(dec: RangeReader, pick: int, nb: int, cols: int) -> np.ndarray:
     """Inverse of :func:`_encode_scale_codes`: the codes ``(nb, cols)``, range checked (FormatError)."""
-    diffs = dec.decode(_DELTA_MODEL, np.zeros(nb * cols), np.full(nb * cols, DELTA_SCALES[pick]))
-    q = np.cumsum(diffs.astype(np.int64)) + QUARTER_BIAS
+    diffs = dec.laplace(np.full((1, 1), DELTA_SCALES[pick]), nb * cols, 1, 0, DELTA_LIMIT, nb * cols + 1)
+    q = np.cumsum(diffs.ravel()) + QUARTER_BIAS
     if q.size and (q.min() < 0 or q.max() > QUARTER_TOP):
         raise FormatError(None, "corrupted integer stream (scales)")
     return q.reshape(nb, cols)
@@ -245,7 +249,7 @@ def decode_int_matrix(data: bytes, shape: tuple[int, int] | None = None) -> np.n
         q = np.frombuffer(bytes(buf[pos:end]), dtype=np.uint8).reshape(nb, cols)
     esc_bytes, body = _escapes_and_body(buf, end)
     try:
-        dec = constriction.stream.queue.RangeDecoder(np.frombuffer(body, dtype=np.uint32).copy())
+        dec = range_decoder(body, rows * cols)
         sym, marks = _decode_values(dec, _block_scale(q), rows, cols)
     except Exception as exc:  # constriction raises plain exceptions on corrupt input
         raise FormatError(None, f"corrupted entropy-coded data ({exc})") from None
@@ -264,20 +268,87 @@ def _escapes_and_body(buf: memoryview, pos: int) -> tuple[bytes, bytes]:
     return esc_bytes, body
 
 
-def _decode_values(dec: Any, scale: np.ndarray, rows: int, cols: int,
+def _decode_values(dec: RangeReader, scale: np.ndarray, rows: int, cols: int,
                    row0: int = 0) -> tuple[np.ndarray, np.ndarray]:
     """The values ``(rows, cols)`` under the scales ``scale`` ``(blocks, cols)`` of their :data:`BLOCK` rows (the
-    first being row ``row0`` of the matrix the blocks count), and the flat positions of their escape marks;
-    :data:`CHUNK_VALUES` values per call, as coded (small arrays)."""
-    model, out, marks = constriction.stream.model.QuantizedLaplace(-LIMIT, LIMIT), np.empty((rows, cols), np.int64), []
-    step, means = max(1, CHUNK_VALUES // cols), np.zeros(min(rows, max(1, CHUNK_VALUES // cols)) * cols)
-    for a in range(0, rows, step):
-        part = out[a:a + step]
-        blocks = np.arange(row0 + a, row0 + a + len(part)) // BLOCK
-        sym = dec.decode(model, means[:part.size], scale[blocks].ravel())
-        part[...] = sym.reshape(part.shape)
-        marks.append(np.flatnonzero(np.abs(sym) >= LIMIT) + a * cols)
-    return out, np.concatenate(marks)
+    first being row ``row0`` of the matrix the blocks count), and the flat positions of their escape marks."""
+    out = dec.laplace(scale, rows, cols, row0)
+    return out, np.flatnonzero(np.abs(out.ravel()) >= LIMIT)
+
+
+class RangeReader:
+    """A range-coded stream being read: constriction's ``RangeDecoder`` (the reference), :data:`CHUNK_VALUES`
+    values per call, as coded (small arrays)."""
+
+    def __init__(self, words: np.ndarray) -> None:
+        self.dec = constriction.stream.queue.RangeDecoder(words)
+
+    def laplace(self, scale: np.ndarray, rows: int, cols: int, row0: int = 0, limit: int = LIMIT,
+                block: int = BLOCK) -> np.ndarray:
+        """The next ``(rows, cols)`` symbols, int64, each under the quantized Laplace(0, ``scale[(row0 + row) //
+        block, col]``) on ``[-limit, limit]``."""
+        model = constriction.stream.model.QuantizedLaplace(-limit, limit)
+        out = np.empty((rows, cols), np.int64)
+        step = max(1, CHUNK_VALUES // max(cols, 1))
+        means = np.zeros(min(rows, step) * cols)
+        for a in range(0, rows, step):
+            part = out[a:a + step]
+            blocks = np.arange(row0 + a, row0 + a + len(part)) // block
+            part[...] = self.dec.decode(model, means[:part.size], scale[blocks].ravel()).reshape(part.shape)
+        return out
+
+
+class CompiledRangeReader(RangeReader):
+    """:class:`RangeReader` with the numba kernel (:mod:`.rangekernels`): the same symbols, about twice as
+    fast. A point outside the range (corrupt data) is a FormatError."""
+
+    def __init__(self, words: np.ndarray, kernels: ModuleType) -> None:
+        self.words, self.kernels = words, kernels
+        self.state = kernels.begin(words)
+
+    def laplace(self, scale: np.ndarray, rows: int, cols: int, row0: int = 0, limit: int = LIMIT,
+                block: int = BLOCK) -> np.ndarray:
+        out = np.empty((rows, cols), np.int64)
+        scale = np.ascontiguousarray(scale, dtype=np.float64)
+        if self.kernels.decode_laplace(self.words, self.state, scale, row0, block, limit, out):
+            raise FormatError(None, "corrupted entropy-coded data (the range decoder's point left its range)")
+        return out
+
+
+_KERNELS: dict[str, ModuleType | None] = {}
+
+
+def range_decoder(body: bytes, values: int = 0) -> RangeReader:
+    """A reader of the range-coded ``body`` (its 32-bit words), about to decode ``values`` values: the compiled
+    one where numba is installed, not turned off (:mod:`mocapz._jit`) and worth loading (loaded already, or
+    :data:`LAZY_VALUES` values), else constriction's. Both give the same symbols."""
+    words = np.frombuffer(body, dtype=np.uint32).copy()
+    kern = _range_kernels(values)
+    return RangeReader(words) if kern is None else CompiledRangeReader(words, kern)
+
+
+def _range_kernels(values: int) -> ModuleType | None:
+    if not _jit.enabled():
+        return None
+    if "mod" in _KERNELS:
+        return _KERNELS["mod"]
+    if ("numba" not in sys.modules and values < LAZY_VALUES) or not _jit.room_to_compile():
+        return None
+    try:
+        from mocapz.format import rangekernels
+    except ImportError:  # numba not installed
+        _KERNELS["mod"] = None
+        return None
+    _warm(rangekernels)
+    _KERNELS["mod"] = rangekernels
+    return rangekernels
+
+
+def _warm(kernels: ModuleType) -> None:
+    """Compile (or load from numba's cache) the kernel now, with the argument types of the real calls: not later
+    inside a caller's resource limits (an address-space cap would abort the process)."""
+    words = np.zeros(2, dtype=np.uint32)
+    kernels.decode_laplace(words, kernels.begin(words), np.ones((1, 1)), 0, BLOCK, LIMIT, np.empty((1, 1), np.int64))
 
 
 def _unescape(sym: np.ndarray, esc_bytes: bytes, marks: np.ndarray) -> np.ndarray:
@@ -296,7 +367,7 @@ def _decode_delta(buf: memoryview, pos: int, rows: int, cols: int, nb: int) -> n
     pick = buf[pos]
     esc_bytes, body = _escapes_and_body(buf, pos + 1)
     try:
-        dec = constriction.stream.queue.RangeDecoder(np.frombuffer(body, dtype=np.uint32).copy())
+        dec = range_decoder(body, rows * cols)
         q = _decode_scale_codes(dec, pick, nb, cols)
         sym, marks = _decode_values(dec, _block_scale(q, 4, QUARTER_BIAS), rows, cols)
     except FormatError:

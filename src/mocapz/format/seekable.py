@@ -90,7 +90,7 @@ def decode_segments(data: bytes, shape: tuple[int, int], starts: list[int],
     head = _take(buf, pos, size)
     pos += size
     nb = max(1, -(-rows // entropy.BLOCK))
-    dec = _decoder(head)
+    dec = entropy.range_decoder(head, rows * cols)
     scale = entropy._block_scale(_guard(lambda: entropy._decode_scale_codes(dec, pick, nb, cols)), 4,
                                  entropy.QUARTER_BIAS)
     out, keep, last = {}, set(wanted), wanted[-1] if wanted else -1
@@ -106,7 +106,7 @@ def decode_segments(data: bytes, shape: tuple[int, int], starts: list[int],
         if i in keep:
             if body_size % 4:
                 raise FormatError(None, "corrupted seekable stream (body)")
-            dec, n = _decoder(body), ends[i] - a
+            dec, n = entropy.range_decoder(body, rows * cols), ends[i] - a
             sym, marks = _guard(lambda dec=dec, a=a, n=n: entropy._decode_values(dec, scale, n, cols, a))
             out[i] = _unescape(sym, esc, marks, complete=n == b - a)
     return out
@@ -134,10 +134,6 @@ def _zstd_rows(data: bytes, rows: int, cols: int, spans: list[tuple[int, int]]) 
     if (r, c) != (rows, cols):
         raise FormatError(None, f"corrupted integer stream (shape {(r, c)} where {(rows, cols)} is expected)")
     return entropy.unpack_zigzag_rows(data[pos:], rows, cols, spans)
-
-
-def _decoder(body: bytes):  # noqa: ANN202 - constriction's RangeDecoder
-    return entropy.constriction.stream.queue.RangeDecoder(np.frombuffer(body, dtype=np.uint32).copy())
 
 
 def _guard(call):  # noqa: ANN001, ANN202

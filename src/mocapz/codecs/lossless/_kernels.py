@@ -7,61 +7,12 @@ import math
 import numpy as np
 from numba import njit
 
-LIMIT = (1 << 15) - 1
-PRECISION = 24
-FREE_WEIGHT = float((1 << PRECISION) - 1 - 2 * LIMIT)  # the leaky quantizer's weight of the continuous CDF
+from mocapz.format.rangekernels import LIMIT, start, step
+
 FRAC, RATE, HIGH_BITS = 4, 2, 7
 MAX_STATE = 1 << 50
 MIN_SCALE = 0.04
 OK, BAD_ESCAPES, BAD_LOW_BITS, BAD_DATA = 0, 1, 2, 3
-
-
-@njit(cache=True)
-def _left(s: int, b: float) -> int:
-    """Left cumulative (out of ``2**24``) of symbol ``s`` under the leaky quantized Laplace(0, b) on
-    ``[-LIMIT, LIMIT]``; ``s = LIMIT + 1`` gives the total. The CDF is evaluated as the encoder's
-    (``probability`` crate) is, ``0.5 exp(x / b)`` or ``1 - 0.5 exp(-x / b)``, truncated after scaling."""
-    if s <= -LIMIT:
-        return 0
-    if s > LIMIT:
-        return 1 << PRECISION
-    x = float(s) - 0.5
-    if x <= 0.0:
-        c = 0.5 * math.exp(x / b)
-    else:
-        c = 1.0 - 0.5 * math.exp(-x / b)
-    return int(FREE_WEIGHT * c) + (s + LIMIT)
-
-
-@njit(cache=True)
-def _find_symbol(q: int, b: float) -> tuple[int, int, int]:
-    """The symbol whose interval ``[left, right)`` holds quantile ``q``: a guess from the inverse CDF,
-    checked against the exact CDF, else bisection."""
-    p = (q - LIMIT + 0.5) / FREE_WEIGHT
-    p = min(max(p, 1e-300), 1.0 - 1e-16)
-    x = b * math.log(2.0 * p) if p <= 0.5 else -b * math.log(2.0 - 2.0 * p)
-    s = int(math.floor(min(max(x, -LIMIT), LIMIT) + 0.5))
-    left = _left(s, b)
-    if left <= q:
-        right = _left(s + 1, b)
-        if right > q:
-            return s, left, right
-        nxt = _left(s + 2, b)
-        if nxt > q:
-            return s + 1, right, nxt
-        lo, hi = s + 2, LIMIT + 1
-    else:
-        prev = _left(s - 1, b)
-        if prev <= q:
-            return s - 1, prev, left
-        lo, hi = -LIMIT, s - 1
-    while hi - lo > 1:  # left(lo) <= q < left(hi)
-        mid = (lo + hi) // 2
-        if _left(mid, b) <= q:
-            lo = mid
-        else:
-            hi = mid
-    return lo, _left(lo, b), _left(lo + 1, b)
 
 
 @njit(cache=True)
@@ -85,18 +36,9 @@ def _next_state(st: int, v: int) -> int:
 def decode_residual_rows(words: np.ndarray, mask: np.ndarray, state: np.ndarray, escapes: np.ndarray,
                           bits: np.ndarray, out: np.ndarray) -> int:
     rows, cols = mask.shape
-    n_words = words.size
-    u32 = np.uint64(32)
-    point = np.uint64(0)
-    read = 0
-    while read < 2 and read < n_words:
-        point = (point << u32) | np.uint64(words[read])
-        read += 1
-    if read == 1:
-        point = point << u32
+    point, read = start(words)
     lower = np.uint64(0)
     rng = np.uint64(0xFFFFFFFFFFFFFFFF)
-    renorm = np.uint64(1 << 32)
     at_esc = 0
     at_bit = 0
     for t in range(rows):
@@ -105,20 +47,9 @@ def decode_residual_rows(words: np.ndarray, mask: np.ndarray, state: np.ndarray,
                 continue
             st = state[c]
             k, b = _model(st)
-            step = rng >> np.uint64(PRECISION)
-            q = (point - lower) // step
-            if q >= np.uint64(1 << PRECISION):
+            s, point, lower, rng, read, ok = step(words, point, lower, rng, read, b, LIMIT)
+            if not ok:
                 return BAD_DATA
-            s, left, right = _find_symbol(np.int64(q), b)
-            lower = lower + step * np.uint64(left)
-            rng = step * np.uint64(right - left)
-            if rng < renorm:
-                lower = lower << u32
-                rng = rng << u32
-                point = point << u32
-                if read < n_words:
-                    point = point | np.uint64(words[read])
-                read += 1
             high = np.int64(s)
             if abs(high) >= LIMIT:
                 if at_esc >= escapes.size:

@@ -16,28 +16,15 @@ rate control and correction layer decode with it, so the file's bytes could depe
 
 from __future__ import annotations
 
-import os
 from typing import Any
 
 import numpy as np
 
+from mocapz._jit import COMPILE_ROOM, enabled, room_to_compile, set_enabled
+
 _KERNELS: dict[str, Any] | None = None
-_ENABLED = os.environ.get("MOCAPZ_NO_NUMBA", "") in ("", "0")
 LAZY_FRAMES = 500  # clips of fewer frames: the NumPy path, always (the correction layer's threshold too,
 # correction/compiled.py: a clip under it loads no numba at all)
-
-
-def set_enabled(on: bool) -> bool:
-    """Use the compiled kernels (when numba is installed) or not; returns the previous setting (tests)."""
-    global _ENABLED
-    old, _ENABLED = _ENABLED, bool(on)
-    return old
-
-
-def enabled() -> bool:
-    """Whether compiled kernels (of any codec) may be used: numba is not turned off (:func:`set_enabled`,
-    ``MOCAPZ_NO_NUMBA``)."""
-    return _ENABLED
 
 
 def kernels(frames: int | None = None) -> dict[str, Any] | None:
@@ -45,7 +32,7 @@ def kernels(frames: int | None = None) -> dict[str, Any] | None:
     when ``frames`` is under :data:`LAZY_FRAMES` (None: whatever the length; tests). Never a function of
     whether numba is loaded already (see the module's docstring)."""
     global _KERNELS
-    if not _ENABLED or (frames is not None and frames < LAZY_FRAMES):
+    if not enabled() or (frames is not None and frames < LAZY_FRAMES):
         return None
     if _KERNELS is None:
         try:
@@ -57,26 +44,6 @@ def kernels(frames: int | None = None) -> dict[str, Any] | None:
                 return None  # the NumPy path this time; the kernels are compiled (or loaded) on a later call
             _KERNELS = _compile()
     return _KERNELS or None
-
-
-COMPILE_ROOM = 1 << 30  # bytes of address space numba / LLVM may need to compile or load the kernels
-
-
-def room_to_compile() -> bool:
-    """False under an address-space cap leaving less than :data:`COMPILE_ROOM` (LLVM aborts the whole process
-    when it runs out of memory: a caller that caps memory, as the hostile-file tests do around every decode,
-    gets the NumPy path instead)."""
-    try:
-        import resource
-
-        soft, _ = resource.getrlimit(resource.RLIMIT_AS)
-        if soft == resource.RLIM_INFINITY:
-            return True
-        with open("/proc/self/status") as f:
-            vm = next(int(line.split()[1]) * 1024 for line in f if line.startswith("VmSize:"))
-        return soft - vm >= COMPILE_ROOM
-    except (ImportError, OSError, StopIteration, ValueError):  # pragma: no cover - not Linux
-        return True
 
 
 def _compile() -> dict[str, Any]:
@@ -104,3 +71,6 @@ def _warm(k: dict[str, Any]) -> None:
     k["euler_channels"](x, np.ascontiguousarray(basis.T), eye, eye.copy(), np.zeros(1, i8),
                         np.array([[2, 0, 1]], dtype=i8), np.ones(1), np.array([[0, 1, 2]], dtype=i8), eye.copy(),
                         np.zeros(1, np.bool_), 1.0, np.zeros((1, 3)))
+
+
+__all__ = ["COMPILE_ROOM", "LAZY_FRAMES", "enabled", "kernels", "room_to_compile", "set_enabled"]

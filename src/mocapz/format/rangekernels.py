@@ -1,0 +1,130 @@
+"""numba kernels of the range decoder under the quantized Laplace model (imported only when numba is installed;
+:mod:`.entropy` and the lossless codec's kernels use them).
+
+constriction's ``RangeDecoder`` (64-bit state, 32-bit words) with ``QuantizedLaplace(-LIMIT, LIMIT)`` models at
+24-bit precision, reimplemented with the same integer arithmetic and the same CDF expression: the same symbols in
+one pass, about 80 ns a value against constriction's 130-160 (tests/test_range_kernels.py).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+LIMIT = (1 << 15) - 1
+PRECISION = 24
+OK, BAD_DATA = 0, 3  # statuses (the lossless kernels' 1 and 2 are theirs)
+_U32 = np.uint64(32)
+_RENORM = np.uint64(1 << 32)
+_FULL = np.uint64(0xFFFFFFFFFFFFFFFF)
+
+
+@njit(cache=True)
+def _left(s: int, b: float, limit: int) -> int:
+    """Left cumulative (out of ``2**24``) of symbol ``s`` under the leaky quantized Laplace(0, b) on
+    ``[-limit, limit]``; ``s = limit + 1`` gives the total. The CDF is evaluated as the encoder's
+    (``probability`` crate) is, ``0.5 exp(x / b)`` or ``1 - 0.5 exp(-x / b)``, truncated after scaling."""
+    if s <= -limit:
+        return 0
+    if s > limit:
+        return 1 << PRECISION
+    x = float(s) - 0.5
+    if x <= 0.0:
+        c = 0.5 * math.exp(x / b)
+    else:
+        c = 1.0 - 0.5 * math.exp(-x / b)
+    return int(float((1 << PRECISION) - 1 - 2 * limit) * c) + (s + limit)
+
+
+@njit(cache=True)
+def _find_symbol(q: int, b: float, limit: int) -> tuple[int, int, int]:
+    """The symbol whose interval ``[left, right)`` holds quantile ``q``: a guess from the inverse CDF,
+    checked against the exact CDF, else bisection."""
+    p = (q - limit + 0.5) / float((1 << PRECISION) - 1 - 2 * limit)
+    p = min(max(p, 1e-300), 1.0 - 1e-16)
+    x = b * math.log(2.0 * p) if p <= 0.5 else -b * math.log(2.0 - 2.0 * p)
+    s = int(math.floor(min(max(x, -limit), limit) + 0.5))
+    left = _left(s, b, limit)
+    if left <= q:
+        right = _left(s + 1, b, limit)
+        if right > q:
+            return s, left, right
+        nxt = _left(s + 2, b, limit)
+        if nxt > q:
+            return s + 1, right, nxt
+        lo, hi = s + 2, limit + 1
+    else:
+        prev = _left(s - 1, b, limit)
+        if prev <= q:
+            return s - 1, prev, left
+        lo, hi = -limit, s - 1
+    while hi - lo > 1:  # left(lo) <= q < left(hi)
+        mid = (lo + hi) // 2
+        if _left(mid, b, limit) <= q:
+            lo = mid
+        else:
+            hi = mid
+    return lo, _left(lo, b, limit), _left(lo + 1, b, limit)
+
+
+@njit(cache=True)
+def start(words: np.ndarray) -> tuple[np.uint64, int]:
+    """The decoder's first point and the words read: ``(point, read)``."""
+    point = np.uint64(0)
+    read = 0
+    while read < 2 and read < words.size:
+        point = (point << _U32) | np.uint64(words[read])
+        read += 1
+    if read == 1:
+        point = point << _U32
+    return point, read
+
+
+@njit(cache=True)
+def step(words: np.ndarray, point: np.uint64, lower: np.uint64, rng: np.uint64, read: int,
+         b: float, limit: int) -> tuple[int, np.uint64, np.uint64, np.uint64, int, bool]:
+    """Decode one symbol under the Laplace scale ``b`` on ``[-limit, limit]``: ``(symbol, point, lower, range,
+    read, ok)`` (not ``ok``: the point lies outside the range, corrupt data)."""
+    width = rng >> np.uint64(PRECISION)
+    q = (point - lower) // width
+    if q >= np.uint64(1 << PRECISION):
+        return 0, point, lower, rng, read, False
+    s, left, right = _find_symbol(np.int64(q), b, limit)
+    lower = lower + width * np.uint64(left)
+    rng = width * np.uint64(right - left)
+    if rng < _RENORM:
+        lower = lower << _U32
+        rng = rng << _U32
+        point = point << _U32
+        if read < words.size:
+            point = point | np.uint64(words[read])
+        read += 1
+    return s, point, lower, rng, read, True
+
+
+@njit(cache=True)
+def begin(words: np.ndarray) -> np.ndarray:
+    """A decoder's state at the start of the stream ``words``: ``[point, lower, range, words read]`` uint64."""
+    point, read = start(words)
+    return np.array([point, np.uint64(0), _FULL, np.uint64(read)], dtype=np.uint64)
+
+
+@njit(cache=True, nogil=True)
+def decode_laplace(words: np.ndarray, state: np.ndarray, scale: np.ndarray, row0: int, block: int, limit: int,
+                   out: np.ndarray) -> int:
+    """Fill ``out`` ``(rows, cols)`` int64 with the next symbols of the stream ``words`` (uint32), row by row,
+    each under the Laplace scale ``scale[(row0 + row) // block, col]`` on ``[-limit, limit]``, from and to the
+    decoder's ``state`` (:func:`begin`); returns :data:`OK` or :data:`BAD_DATA`."""
+    rows, cols = out.shape
+    point, lower, rng, read = state[0], state[1], state[2], np.int64(state[3])
+    for t in range(rows):
+        blk = (row0 + t) // block
+        for c in range(cols):
+            s, point, lower, rng, read, ok = step(words, point, lower, rng, read, scale[blk, c], limit)
+            if not ok:
+                return BAD_DATA
+            out[t, c] = s
+    state[0], state[1], state[2], state[3] = point, lower, rng, np.uint64(read)
+    return OK
