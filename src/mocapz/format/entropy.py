@@ -56,6 +56,7 @@ QUARTER_TOP = 127
 DELTA_SCALES = (0.5, 1.0, 2.0, 4.0, 8.0, 16.0)  # Laplace scales of the scale codes' differences (one byte picks)
 CHUNK_VALUES = 1 << 16  # values range coded per call of the coder (its per-value arrays: peak memory)
 LAZY_VALUES = 1 << 20  # values decoded in one stream from which numba is loaded for the range decoder
+HIST_VALUES = 64  # a scale search over blocks whose absolute values are all below this works on their histogram
 
 
 _DELTA_MODEL = constriction.stream.model.QuantizedLaplace(-DELTA_LIMIT, DELTA_LIMIT) if HAVE_CONSTRICTION else None
@@ -90,23 +91,39 @@ def _scale_codes(values: np.ndarray, steps: int, bias: int, offsets: range, top:
             q[b] = np.clip(guess, 0, top)
             continue
         best, best_cost = guess, np.full(cols, np.inf)
+        hist = _histogram(blk)
         for d in offsets:
             code = np.clip(guess + d, 0, top)
-            cost = _laplace_bits(blk, 2.0 ** ((code - float(bias)) / steps))
+            cost = _laplace_bits(*hist, 2.0 ** ((code - float(bias)) / steps))
             better = cost < best_cost
             best, best_cost = np.where(better, code, best), np.where(better, cost, best_cost)
         q[b] = best
     return q
 
 
-def _laplace_bits(a: np.ndarray, scale: np.ndarray) -> np.ndarray:
+def _histogram(a: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
+    """``(values (k, 1), counts (k, columns))``: how often each value ``0 .. k - 1`` occurs in each column of the
+    absolute values ``a`` ``(rows, columns)`` when they are all below :data:`HIST_VALUES` (a block's costs under
+    every candidate scale then come from a few values, not from every row); else ``(a, None)``."""
+    cols = a.shape[1]
+    top = int(a.max()) + 1 if a.size else 1
+    if top > HIST_VALUES:
+        return a, None
+    at = a.astype(np.int64) * cols + np.arange(cols)
+    counts = np.bincount(at.ravel(), minlength=top * cols).reshape(top, cols).astype(np.float64)
+    return np.arange(top, dtype=np.float64)[:, None], counts
+
+
+def _laplace_bits(a: np.ndarray, counts: np.ndarray | None, scale: np.ndarray) -> np.ndarray:
     """Bits ``(columns,)`` the absolute values ``a`` ``(rows, columns)`` cost under a quantised Laplace model of
-    scale ``scale`` ``(columns,)`` (each probability at least 2**-24, as the coder's)."""
+    scale ``scale`` ``(columns,)`` (each probability at least 2**-24, as the coder's); with ``counts``, ``a``
+    holds distinct values ``(k, 1)`` occurring ``counts`` ``(k, columns)`` times (:func:`_histogram`)."""
     s = scale[None, :]
     zero = -np.expm1(-0.5 / s)
     other = 0.5 * np.exp(-(np.maximum(a, 0.5) - 0.5) / s) * -np.expm1(-1.0 / s)
     p = np.where(a == 0, zero, other)
-    return -np.log2(np.maximum(p, 2.0**-24)).sum(axis=0)
+    bits = -np.log2(np.maximum(p, 2.0**-24))
+    return bits.sum(axis=0) if counts is None else (bits * counts).sum(axis=0)
 
 
 def _block_scale(q: np.ndarray, steps: int = SCALE_STEPS, bias: int = 64) -> np.ndarray:
@@ -188,7 +205,7 @@ def _delta_scales(v: np.ndarray) -> tuple[np.ndarray, int]:
     differences are coded with (an index into :data:`DELTA_SCALES`)."""
     q = _quarter_scales(v)
     diffs = np.abs(np.diff(q.ravel(), prepend=QUARTER_BIAS))[:, None].astype(np.float64)
-    return q, int(np.argmin([_laplace_bits(diffs, np.array([d]))[0] for d in DELTA_SCALES]))
+    return q, int(np.argmin([_laplace_bits(diffs, None, np.array([d]))[0] for d in DELTA_SCALES]))
 
 
 def _encode_scale_codes(enc: Any, q: np.ndarray, pick: int) -> None:
