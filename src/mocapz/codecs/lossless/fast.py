@@ -3,10 +3,10 @@
 The plain numpy path (:mod:`.coding`, :mod:`.decode`, :mod:`.encode`) stays the reference and works
 without numba; the kernels (:mod:`._kernels`) compute the very same integers, faster:
 
-* ``decode_residual_rows``: the residual stream's range decoder (constriction's ``RangeDecoder``: 64-bit
-  state, 32-bit words, quantized Laplace models at 24-bit precision, reimplemented with the same integer
-  arithmetic and the same CDF expression), fused with the escapes, the low bits and the running scale
-  states, in one pass over the rows instead of one Python call per row;
+* ``decode_residual_rows``: the residual stream's range decoder (the step of
+  :mod:`mocapz.format.rangekernels`: constriction's ``RangeDecoder`` with quantized Laplace models,
+  reimplemented with the same integer arithmetic and the same CDF expression), fused with the escapes, the low
+  bits and the running scale states, in one pass over the rows instead of one Python call per row;
 * ``row_models``: the encoder's per-row low-bit counts and Laplace scales (the running states);
 * ``undo_prediction``: second differences from residuals and cross-channel predictions, then the two
   cumulative sums, for every frame in one pass.
