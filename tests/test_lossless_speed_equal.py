@@ -114,3 +114,33 @@ def test_batched_pursuit_matches_column_by_column(rel: str) -> None:
     batched = choose_shared(shared, order, d2.shape[0])
     for (p1, c1), (p2, c2), (p3, c3) in zip(one_by_one, batched, unshared, strict=True):
         assert p1 == p2 == p3 and np.array_equal(c1, c2) and np.array_equal(c1, c3)
+
+
+def test_predictor_table_round_trip_and_damage() -> None:
+    """pack_predictors -> unpack_predictors gives the table back as arrays; damaged tables give a FormatError or a
+    table that still names only earlier columns of the window, never another exception."""
+    from mocapz.codecs.lossless.predict import MAX_PREDICTORS, WINDOW, pack_predictors, unpack_predictors
+    from mocapz.errors import FormatError
+
+    rng = np.random.default_rng(2)
+    order = [int(c) for c in rng.permutation(90)]
+    table = []
+    for i in range(len(order)):
+        k = int(rng.integers(0, min(i, MAX_PREDICTORS) + 1))
+        back = rng.choice(np.arange(1, min(i, WINDOW) + 1), size=k, replace=False) if k else np.zeros(0, int)
+        table.append(([order[i - int(b)] for b in back], rng.integers(-4000, 4000, k)))
+    data = pack_predictors(order, table)
+    npred, pidx, pcoef = unpack_predictors(order, data)
+    for i, (preds, coef) in enumerate(table):
+        assert npred[i] == len(preds) and pidx[i, : len(preds)].tolist() == preds
+        assert np.array_equal(pcoef[i, : len(preds)], coef) and not pidx[i, len(preds):].any()
+    where = {c: i for i, c in enumerate(order)}
+    for _ in range(300):
+        bad = bytearray(data)
+        bad[int(rng.integers(0, len(bad)))] ^= 1 << int(rng.integers(0, 8))
+        try:
+            npred, pidx, _ = unpack_predictors(order, bytes(bad))
+        except FormatError:
+            continue
+        for i in range(len(order)):
+            assert all(0 < i - where[int(p)] <= WINDOW for p in pidx[i, : npred[i]])

@@ -21,7 +21,7 @@ from mocapz.codecs.lossless.integers import (
     apply_exceptions,
     form_values,
 )
-from mocapz.codecs.lossless.predict import MAX_PREDICTORS, coding_order, cross_term, unpack_predictors
+from mocapz.codecs.lossless.predict import coding_order, cross_term, unpack_predictors
 from mocapz.errors import FormatError
 from mocapz.format.entropy import read_uvarint, unpack_uint64, unzigzag
 from mocapz.model.header import ClipHeader
@@ -118,23 +118,17 @@ def _decode_ints(sections: dict[str, bytes], frames: int, cols: int, groups: lis
                                     f"expected)")
         observed = np.ones((frames - 2, len(order)), dtype=bool) if gaps is None else ~gaps[2:, order]
         residual = decode_residuals(sections["res"], observed)
-        table = unpack_predictors(order, sections["coef"])
+        npred, pidx, pcoef = unpack_predictors(order, sections["coef"])
         kern = fast.kernels()
         if kern is not None:
             x = np.broadcast_to(head[:cols], (frames, cols)).copy()
-            n = len(order)
-            npred = np.array([len(p) for p, _ in table], dtype=np.int64)
-            pidx = np.zeros((n, MAX_PREDICTORS), dtype=np.int64)
-            pcoef = np.zeros((n, MAX_PREDICTORS), dtype=np.int64)
-            for i, (preds, coef) in enumerate(table):
-                pidx[i, : len(preds)] = preds
-                pcoef[i, : len(preds)] = coef
             kern.undo_prediction(residual, np.asarray(order, dtype=np.int64), npred, pidx, pcoef,
                                  active.astype(np.int64), d1.astype(np.int64), x)
             return x
         d2 = np.zeros((frames - 2, cols), dtype=np.int64)
-        for k, (c, (preds, coef)) in enumerate(zip(order, table, strict=True)):
-            d2[:, c] = residual[:, k] + cross_term(d2, preds, coef)
+        for k, c in enumerate(order):
+            m = int(npred[k])
+            d2[:, c] = residual[:, k] + cross_term(d2, pidx[k, :m].tolist(), pcoef[k, :m])
     x = np.broadcast_to(head[:cols], (frames, cols)).copy()
     if frames == 1:
         return x

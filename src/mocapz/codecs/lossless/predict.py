@@ -164,26 +164,40 @@ def pack_predictors(order: list[int], table: list[tuple[list[int], np.ndarray]])
     return write_uvarint(len(head)) + head + pack_small(zigzag(np.asarray(coefs, dtype=np.int64)))
 
 
-def unpack_predictors(order: list[int], data: bytes) -> list[tuple[list[int], np.ndarray]]:
-    """Inverse of :func:`pack_predictors` (every count, distance and coefficient checked)."""
+def unpack_predictors(order: list[int], data: bytes) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Inverse of :func:`pack_predictors` (every count, distance and coefficient checked), as arrays over the
+    columns in coding order: the predictor counts ``(n,)``, the predictor columns and their coefficients ``(n,
+    MAX_PREDICTORS)`` (zero beyond each count)."""
+    n = len(order)
     size, pos = read_uvarint(data, 0)
     if pos + size > len(data):
         raise FormatError(None, "corrupted lossless stream (predictor table)")
-    meta = unpack_small(data[pos : pos + size], at_most=(1 + MAX_PREDICTORS) * len(order)).tolist()
-    values = unzigzag(unpack_small(data[pos + size :], at_most=MAX_PREDICTORS * len(order)))
+    meta_arr = unpack_small(data[pos : pos + size], at_most=(1 + MAX_PREDICTORS) * n)
+    values = unzigzag(unpack_small(data[pos + size :], at_most=MAX_PREDICTORS * n))
     if values.size and int(np.abs(values).max()) > COEF_LIMIT:
         raise FormatError(None, "corrupted lossless stream (predictor coefficient)")
-    table: list[tuple[list[int], np.ndarray]] = []
-    at = used = 0
-    for i in range(len(order)):
-        if at >= len(meta) or not 0 <= meta[at] <= MAX_PREDICTORS:
+    if meta_arr.size and int(meta_arr.max()) > WINDOW:  # every count and distance is at most WINDOW
+        raise FormatError(None, "corrupted lossless stream (predictor table)")
+    meta = meta_arr.astype(np.int64)
+    starts = np.empty(n, dtype=np.int64)  # where each column's count is (the one sequential step)
+    listed, at = meta.tolist(), 0
+    for i in range(n):
+        if at >= len(listed) or listed[at] > MAX_PREDICTORS:
             raise FormatError(None, "corrupted lossless stream (predictor table)")
-        n = meta[at]
-        back = meta[at + 1 : at + 1 + n]
-        at, used = at + 1 + n, used + n
-        if len(back) != n or used > values.size or (n and not 1 <= min(back) <= max(back) <= min(i, WINDOW)):
-            raise FormatError(None, "corrupted lossless stream (predictor table)")
-        table.append(([order[i - b] for b in back], values[used - n : used]))
-    if at != len(meta) or used != values.size:
+        starts[i] = at
+        at += 1 + listed[at]
+    npred = meta[starts] if n else np.zeros(0, dtype=np.int64)
+    if at != meta.size or int(npred.sum()) != values.size:
         raise FormatError(None, "corrupted lossless stream (predictor table length)")
-    return table
+    slot = np.arange(MAX_PREDICTORS)
+    used = slot[None, :] < npred[:, None]  # (n, MAX_PREDICTORS)
+    back = np.where(used, meta[np.minimum(starts[:, None] + 1 + slot, max(meta.size - 1, 0))], 1)
+    col = np.arange(n)[:, None]
+    if np.any(used & ((back < 1) | (back > np.minimum(col, WINDOW)))):
+        raise FormatError(None, "corrupted lossless stream (predictor table)")
+    order_arr = np.asarray(order, dtype=np.int64)
+    pidx = np.where(used, order_arr[np.maximum(col - back, 0)], 0)
+    first = np.cumsum(npred) - npred
+    pcoef = np.where(used, values[np.minimum(first[:, None] + slot, max(values.size - 1, 0))] if values.size else 0,
+                     0)
+    return npred, pidx, pcoef.astype(np.int64)
