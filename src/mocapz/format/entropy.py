@@ -316,7 +316,7 @@ class RangeReader:
 
 
 class CompiledRangeReader(RangeReader):
-    """:class:`RangeReader` with the numba kernel (:mod:`.rangekernels`): the same symbols, about twice as
+    """:class:`RangeReader` with the numba kernel (:mod:`.rangekernels`): the same symbols, two to four times as
     fast. A point outside the range (corrupt data) is a FormatError."""
 
     def __init__(self, words: np.ndarray, kernels: ModuleType) -> None:
