@@ -85,15 +85,10 @@ def start(words: np.ndarray) -> tuple[np.uint64, int]:
 
 
 @njit(cache=True)
-def step(words: np.ndarray, point: np.uint64, lower: np.uint64, rng: np.uint64, read: int,
-         b: float, limit: int) -> tuple[int, np.uint64, np.uint64, np.uint64, int, bool]:
-    """Decode one symbol under the Laplace scale ``b`` on ``[-limit, limit]``: ``(symbol, point, lower, range,
-    read, ok)`` (not ``ok``: the point lies outside the range, corrupt data)."""
-    width = rng >> np.uint64(PRECISION)
-    q = (point - lower) // width
-    if q >= np.uint64(1 << PRECISION):
-        return 0, point, lower, rng, read, False
-    s, left, right = _find_symbol(np.int64(q), b, limit)
+def _advance(words: np.ndarray, point: np.uint64, lower: np.uint64, rng: np.uint64, read: int, width: np.uint64,
+             left: int, right: int) -> tuple[np.uint64, np.uint64, np.uint64, int]:
+    """The decoder's state after a symbol of interval ``[left, right)`` (renormalised by a word when the range
+    falls under 2**32): ``(point, lower, range, read)``."""
     lower = lower + width * np.uint64(left)
     rng = width * np.uint64(right - left)
     if rng < _RENORM:
@@ -103,6 +98,20 @@ def step(words: np.ndarray, point: np.uint64, lower: np.uint64, rng: np.uint64, 
         if read < words.size:
             point = point | np.uint64(words[read])
         read += 1
+    return point, lower, rng, read
+
+
+@njit(cache=True)
+def step(words: np.ndarray, point: np.uint64, lower: np.uint64, rng: np.uint64, read: int,
+         b: float, limit: int) -> tuple[int, np.uint64, np.uint64, np.uint64, int, bool]:
+    """Decode one symbol under the Laplace scale ``b`` on ``[-limit, limit]``: ``(symbol, point, lower, range,
+    read, ok)`` (not ``ok``: the point lies outside the range, corrupt data)."""
+    width = rng >> np.uint64(PRECISION)
+    q = (point - lower) // width
+    if q >= np.uint64(1 << PRECISION):
+        return 0, point, lower, rng, read, False
+    s, left, right = _find_symbol(np.int64(q), b, limit)
+    point, lower, rng, read = _advance(words, point, lower, rng, read, width, left, right)
     return s, point, lower, rng, read, True
 
 
@@ -148,15 +157,7 @@ def _table_step(words: np.ndarray, point: np.uint64, lower: np.uint64, rng: np.u
         s, left, right = lo - TABLE, row[lo], row[lo + 1]
     else:
         s, left, right = _find_symbol(qi, b, limit)
-    lower = lower + width * np.uint64(left)
-    rng = width * np.uint64(right - left)
-    if rng < _RENORM:
-        lower = lower << _U32
-        rng = rng << _U32
-        point = point << _U32
-        if read < words.size:
-            point = point | np.uint64(words[read])
-        read += 1
+    point, lower, rng, read = _advance(words, point, lower, rng, read, width, left, right)
     return s, point, lower, rng, read, True
 
 
