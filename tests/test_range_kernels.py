@@ -46,6 +46,10 @@ def _matrices() -> list[np.ndarray]:
     wide = np.round(rng.laplace(0, 1, (260, 9))).astype(np.int64)
     wide[:, 4] *= 100000  # escapes in one column
     out.append(wide)
+    tails = np.zeros((600, 8), dtype=np.int64)  # zeros and far outliers: a tiny scale, symbols on the leaky floor
+    at = rng.integers(0, tails.size, 120)
+    tails.flat[at] = rng.integers(50, 30000, 120) * rng.choice([-1, 1], 120)
+    out.append(tails)
     return out
 
 

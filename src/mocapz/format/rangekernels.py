@@ -56,12 +56,24 @@ def _find_symbol(q: int, b: float, limit: int) -> tuple[int, int, int]:
         nxt = _left(s + 2, b, limit)
         if nxt > q:
             return s + 1, right, nxt
-        lo, hi = s + 2, limit + 1
+        # every symbol adds at least 1 to the cumulative: the symbol is at most g (exactly g where the CDF is flat,
+        # in the tails the leaky floor holds alone)
+        g = min(s + 2 + (q - nxt), limit)
+        lo, hi = s + 2, g + 1
+        at = _left(g, b, limit)
+        if at <= q:
+            return g, at, _left(g + 1, b, limit)
+        hi = g
     else:
         prev = _left(s - 1, b, limit)
         if prev <= q:
             return s - 1, prev, left
-        lo, hi = -limit, s - 1
+        g = max(s - 1 - (prev - q), -limit)  # likewise: the symbol is at least g
+        lo, hi = g, s - 1
+        after = _left(g + 1, b, limit)
+        if after > q:
+            return g, _left(g, b, limit), after
+        lo = g + 1
     while hi - lo > 1:  # left(lo) <= q < left(hi)
         mid = (lo + hi) // 2
         if _left(mid, b, limit) <= q:
