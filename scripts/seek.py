@@ -6,9 +6,10 @@ streams shorter clips keep (format 2, ``window.SEEK_MIN`` raised for the run). P
 decode's time, the 20-frame seek's time (the median over 5 starts spread over the clip of each start's best of
 ``--repeat`` calls, as ``scripts/speed.py`` does) and the share of the range-coded values the seek decodes
 (counted, so machine-independent). Every seek is checked equal, to the bit, to the full decode's frames.
+pga's single streams also go without its ``turns`` section (written with the seekable layout only).
 Writes ``docs/benchmarks/seek.md``::
 
-    python scripts/seek.py [--codecs quant,patterns] [--clips 06_13,01_01.amc] [--repeat 7] [--out FILE]
+    python scripts/seek.py [--codecs quant,patterns,pga] [--clips 06_13,01_01.amc] [--repeat 7] [--out FILE]
 """
 
 # ruff: noqa: I001  (mocapz before numpy: it pins the BLAS kernels, see mocapz._blas)
@@ -23,6 +24,7 @@ from pathlib import Path
 
 import mocapz
 import numpy as np
+from mocapz.codecs import get_codec
 from mocapz.codecs.correction import window
 from mocapz.format import entropy
 from mocapz.format.container import Container
@@ -69,7 +71,7 @@ def best_of(call, repeat: int) -> float:  # noqa: ANN001
 def measure(path: Path, codec: str, repeat: int) -> dict | None:
     motion = mocapz.load(path)
     n = motion.n_frames
-    if n < window.SEEK_MIN:
+    if n < window.SEEK_MIN or motion.kind not in get_codec(codec).kinds:
         return None
     data = mocapz.compress(motion, codec=codec)
     saved, window.SEEK_MIN = window.SEEK_MIN, 10**12
@@ -105,8 +107,9 @@ def report(rows: list[dict], args: str) -> str:
         "*single streams*: the same clip and target with the layout of clips under 1,024 frames; *seek*: the "
         "median over 5 starts of 20 frames, each start's best of the repeats, against the full decode's best; "
         "*values decoded*: the share of the range-coded values the middle seek decodes (counted). Every seek "
-        "equals the full decode's frames to the bit. A file whose correction sits on a model base (pga always, "
-        "the others when the model wins) decodes whole.",
+        "equals the full decode's frames to the bit. A file whose correction sits on a model base decodes whole, but "
+        "pga's: its streams are decoded whole, their trajectories only where the frames reach, its IK solved on the "
+        "frames only (the angles' whole turns stored in its `turns` section).",
         "",
         "| clip | codec | frames | base | bytes | single streams | layout cost | full decode ms | seek ms "
         "| seek / full | values decoded |",
@@ -120,18 +123,19 @@ def report(rows: list[dict], args: str) -> str:
     for codec in sorted({r["codec"] for r in rows}):
         mine = [r for r in rows if r["codec"] == codec]
         total, plain = sum(r["bytes"] for r in mine), sum(r["plain"] for r in mine)
-        zero = [r for r in mine if r["base"] == "zero"]
-        pct = [100 * r["seek_s"] / r["decode_s"] for r in zero]
+        seekable = [r for r in mine if r["base"] == "zero" or codec == "pga"]
+        pct = [100 * r["seek_s"] / r["decode_s"] for r in seekable]
+        which = "files" if codec == "pga" else "zero-base files"
         lines += ["", f"- **{codec}**: {len(mine)} files, {total:,} B against {plain:,} B with single streams "
                       f"({100 * (total / plain - 1):+.2f} %)" + (
-                          f"; on the {len(zero)} zero-base files a seek costs {min(pct):.1f} to {max(pct):.1f} % "
-                          f"of a full decode (median {statistics.median(pct):.1f} %)" if zero else "") + "."]
+                          f"; on the {len(seekable)} {which} a seek costs {min(pct):.1f} to {max(pct):.1f} % "
+                          f"of a full decode (median {statistics.median(pct):.1f} %)" if seekable else "") + "."]
     return "\n".join(lines) + "\n"
 
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--codecs", default="quant,patterns")
+    ap.add_argument("--codecs", default="quant,patterns,pga")
     ap.add_argument("--clips", default=None, help="file name prefixes (default: every clip of CLIPS)")
     ap.add_argument("--repeat", type=int, default=7)
     ap.add_argument("--out", type=Path, default=ROOT / "docs" / "benchmarks" / "seek.md")

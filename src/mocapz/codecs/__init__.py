@@ -88,10 +88,12 @@ def _loader(module: str) -> Callable[[], CodecInfo]:
     loaded: list[CodecInfo] = []
 
     def load() -> CodecInfo:
-        """The module's codec, its encoder and decoder run with one BLAS thread (:func:`mocapz._blas.one_thread`)."""
+        """The module's codec, its encoder and decoders run with one BLAS thread (:func:`mocapz._blas.one_thread`)."""
         if not loaded:
             info: CodecInfo = importlib.import_module(module).INFO
-            loaded.append(replace(info, encode=on_one_thread(info.encode), decode=on_one_thread(info.decode)))
+            window = None if info.decode_window is None else on_one_thread(info.decode_window)
+            loaded.append(replace(info, encode=on_one_thread(info.encode), decode=on_one_thread(info.decode),
+                                  decode_window=window))
         return loaded[0]
 
     return load

@@ -38,6 +38,7 @@ from mocapz.model.motion import AnyMotion, MarkerMotion, Motion
 Sections = dict[str, bytes]
 Encoder = Callable[..., Sections]
 Decoder = Callable[[Sections, ClipHeader], AnyMotion]
+WindowDecoder = Callable[[Sections, ClipHeader, int, int], AnyMotion | None]
 
 DEFAULT_ERROR_CM = 1.0  # the default target (codecs.target.DEFAULT_TARGET_TEXT); 1/170 of the body height
 # when the length unit is unknown
@@ -210,17 +211,28 @@ def _prefix(header: ClipHeader, kind: int) -> np.ndarray:
     return context.prefix(before, header.rotation_mask, header.period)
 
 
-def apply_window(sections: Sections, header: ClipHeader, start: int, stop: int) -> AnyMotion | None:
-    """Frames ``[start, stop)`` of a clip coded with the seekable layout on a zero base, decoding only the chunks
-    they need (the values of a full decode, to the bit), or None where the whole clip must be decoded (another
-    layout, a model base, a window the correction leaves at zero: whether the motion keeps the source's decimals
-    and quantum depends on the whole clip)."""
+def apply_window(sections: Sections, header: ClipHeader, start: int, stop: int,
+                 base_window: WindowDecoder | None = None) -> AnyMotion | None:
+    """Frames ``[start, stop)`` of a clip coded with the seekable layout, decoding only the chunks they need (the
+    values of a full decode, to the bit), or None where the whole clip must be decoded (another layout, a model
+    base without ``base_window`` or one it cannot window, a zero-base window the correction leaves at zero:
+    whether the motion keeps the source's decimals and quantum depends on the whole clip).
+
+    ``base_window(sections, header, start, stop)``: the model's own frames ``[start, stop)`` (or None) from its
+    sections (those of the correction left out), for a file on a model base."""
     if "c.head" not in sections:
         return None
     try:
         fmt, kind, levels, code = _head(sections["c.head"])
-        if fmt != SEEKABLE or kind != BASE_NONE:
+        if fmt != SEEKABLE:
             return None
+        base = None
+        if kind == BASE_MODEL:
+            if base_window is not None:
+                base = base_window({k: v for k, v in sections.items() if not k.startswith("c.")}, header, start,
+                                   stop)
+            if base is None:
+                return None
         groups = group_of(header)
         codes = _codes(sections["c.codes"], groups.size)
         halves = 2.0 ** (-np.arange(61, dtype=np.float64) / 2.0)  # every level's value (the same numbers)
@@ -231,6 +243,8 @@ def apply_window(sections: Sections, header: ClipHeader, start: int, stop: int) 
         mask = None if gaps is None else unpack_mask(gaps, (header.frames, len(header.labels)))[start:stop]
     except KeyError as exc:
         raise FormatError(None, f"corrupted correction (missing section {exc})") from None
+    if base is not None:
+        return _add(base, y, part)
     if not y.any():
         return None  # the full decode's motion tells whether its values keep the source's decimals and quantum
     return _add(zero_motion(part, None, mask), y, part)

@@ -4,6 +4,7 @@ unit, unwrapped over time) and the position channels."""
 from __future__ import annotations
 
 import warnings
+from collections.abc import Callable
 
 import numpy as np
 
@@ -84,22 +85,28 @@ def unwrap_columns(out: np.ndarray, cols: np.ndarray, period: float) -> None:
         out[:, jumps] = np.unwrap(out[:, jumps], period=period, axis=0)
 
 
+Unwrapper = Callable[[np.ndarray, np.ndarray, float], None]
+
+
 def channels_from_pose(skeleton: Skeleton, local_rot: np.ndarray, root_pos: np.ndarray,
-                       other: np.ndarray) -> np.ndarray:
+                       other: np.ndarray, unwrap: Unwrapper | None = None) -> np.ndarray:
     """Channel values ``(F, C)`` of local rotations ``(F, J, 3, 3)``, the root position ``(F, 3)`` and the
     non-root position channels ``(F, p)`` (file units). Angles are unwrapped along time (a full turn is
-    360 degrees or 2 pi radians, by the skeleton's angle unit). Always finite (NaN and inf replaced)."""
+    360 degrees or 2 pi radians, by the skeleton's angle unit) by ``unwrap(out, rotation columns, period)``
+    (:func:`unwrap_columns` by default, or the file's stored turns, :mod:`.turns`). Always finite (NaN and inf
+    replaced)."""
     out = np.zeros((local_rot.shape[0], skeleton.n_channels))
     channels_from_rotations(skeleton, local_rot, out)
-    return finish_channels(skeleton, out, root_pos, other)
+    return finish_channels(skeleton, out, root_pos, other, unwrap)
 
 
-def finish_channels(skeleton: Skeleton, out: np.ndarray, root_pos: np.ndarray, other: np.ndarray) -> np.ndarray:
+def finish_channels(skeleton: Skeleton, out: np.ndarray, root_pos: np.ndarray, other: np.ndarray,
+                    unwrap: Unwrapper | None = None) -> np.ndarray:
     """:func:`channels_from_pose` after the Euler angles are in ``out``: unwrap them, add the positions."""
     root_cols, other_cols = position_columns(skeleton)
     rot_cols = skeleton.rotation_columns()
     period = 360.0 if skeleton.angle_unit == "deg" else 2 * np.pi
-    unwrap_columns(out, rot_cols, period)
+    (unwrap or unwrap_columns)(out, rot_cols, period)
     labels = skeleton.channel_labels()
     for c in root_cols:
         out[:, c] = root_pos[:, "XYZ".index(labels[c].split(".")[-1][0])]

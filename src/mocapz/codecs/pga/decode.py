@@ -2,14 +2,16 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import functools
+from dataclasses import dataclass, replace
 from itertools import pairwise
 from typing import Any
 
 import numpy as np
 
-from mocapz.codecs.pga import ikjit, lifting
-from mocapz.codecs.pga.channels import channels_from_pose, euler_tables, finish_channels
+from mocapz.codecs.correction.window import seekable
+from mocapz.codecs.pga import ikjit, lifting, turns
+from mocapz.codecs.pga.channels import Unwrapper, channels_from_pose, euler_tables, finish_channels
 from mocapz.codecs.pga.clip import targets_in_root_frame
 from mocapz.codecs.pga.effectors import effector_points
 from mocapz.codecs.pga.ik import IKProblem, make_problem
@@ -34,21 +36,62 @@ def stream_count(s: PGASettings, n_other: int) -> int:
 
 def decode(sections: dict[str, bytes], header: ClipHeader) -> Any:
     """Container entry point: sections -> Motion."""
+    skeleton, settings = _checked(sections, header)
+    try:
+        channels = decode_channels(skeleton, settings, sections, header.frames)
+    except KeyError as exc:
+        raise FormatError(None, f"corrupted PGA stream (missing section {exc})") from None
+    return _motion(header, channels)
+
+
+def decode_window(sections: dict[str, bytes], header: ClipHeader, start: int, stop: int) -> Any:
+    """Frames ``[start, stop)`` of a clip: every stream decoded, the IK solved on those frames only (the values
+    of a full decode, to the bit: the compiled IK and Euler angles go frame by frame); None where the full
+    decode is needed: a file without ``turns``, the temporal regulariser coupling the frames, or no compiled
+    kernels (NumPy's batched products sum a frame's values in an order that depends on the batch)."""
+    skeleton, s = _checked(sections, header)
+    if s.lam_temporal > 0 or turns.SECTION not in sections \
+            or ikjit.kernels(header.frames - len(s.outliers)) is None:
+        return None
+    frames = header.frames
+    try:
+        out = np.zeros((stop - start, skeleton.n_channels))
+        _check_outliers(s, frames)
+        outliers = np.asarray(s.outliers, dtype=np.int64)
+        inside = (outliers >= start) & (outliers < stop)
+        if inside.any():  # the outlier frames' exact values are decoded whole (a few frames)
+            exact = decode_outliers(sections["outl"], outliers.size, skeleton.n_channels)
+            out[outliers[inside] - start] = exact[inside]
+        # the kept frames' indices: frame f (not an outlier) is kept frame f - (outliers before f)
+        lo, hi = np.array([start, stop]) - np.searchsorted(outliers, [start, stop])
+        if hi > lo:
+            rows = np.setdiff1d(np.arange(start, stop), outliers) - start
+            out[rows] = decode_span(skeleton, s, sections, frames - outliers.size, int(lo), int(hi))
+    except KeyError as exc:
+        raise FormatError(None, f"corrupted PGA stream (missing section {exc})") from None
+    return _motion(replace(header, frames=stop - start), out)
+
+
+def _checked(sections: dict[str, bytes], header: ClipHeader) -> tuple[Skeleton, PGASettings]:
+    """The file's skeleton and settings, checked against the header (FormatError)."""
     skeleton = header.skeleton
     if skeleton is None:
         raise FormatError(None, "corrupted PGA stream (marker layout)")
-    frames = header.frames
     try:
         check_skeleton(skeleton)
     except OptionError as exc:
         raise FormatError(None, f"corrupted PGA stream ({exc.message})") from None
     try:
         settings = PGASettings.from_bytes(sections["params"])
-        if frames > len(settings.outliers):  # the settings drive the kept frames only (a 0-frame clip keeps defaults)
-            settings.check_decoded(3 * len(inner_joints(skeleton)), skeleton.n_points)
-        channels = decode_channels(skeleton, settings, sections, frames)
     except KeyError as exc:
         raise FormatError(None, f"corrupted PGA stream (missing section {exc})") from None
+    # the settings drive the kept frames only (a 0-frame clip keeps defaults)
+    if header.frames > len(settings.outliers):
+        settings.check_decoded(3 * len(inner_joints(skeleton)), skeleton.n_points)
+    return skeleton, settings
+
+
+def _motion(header: ClipHeader, channels: np.ndarray) -> Any:
     motion = header.motion(channels)
     # lossy values: write them with the source's finest precision (at least 4 decimals) in every column,
     # not with per-column counts that fit the source's values only (a constant column may have 0)
@@ -57,14 +100,18 @@ def decode(sections: dict[str, bytes], header: ClipHeader) -> Any:
     return motion
 
 
+def _check_outliers(s: PGASettings, frames: int) -> None:
+    if any(not 0 <= f < frames for f in s.outliers) or any(b <= a for a, b in pairwise(s.outliers)):
+        raise FormatError(None, "corrupted PGA stream (outlier frames)")
+
+
 def decode_channels(skeleton: Skeleton, s: PGASettings, sections: dict[str, bytes], frames: int,
                     edit: dict[int, np.ndarray] | None = None) -> np.ndarray:
     """Decoded channel values ``(frames, channels)``.
 
     ``edit`` maps effector slots to replacement global trajectories ``(kept frames, 3)`` (motion editing).
     """
-    if any(not 0 <= f < frames for f in s.outliers) or any(b <= a for a, b in pairwise(s.outliers)):
-        raise FormatError(None, "corrupted PGA stream (outlier frames)")
+    _check_outliers(s, frames)
     outliers = np.asarray(s.outliers, dtype=np.int64)
     n = frames - outliers.size
     # every stream is read, and checked against the frame count, before frames x channels are allocated
@@ -94,8 +141,11 @@ class Decoded:
     other: np.ndarray  # (F, p) decoded position channels of non-root joints
 
 
-def decode_streams(skeleton: Skeleton, s: PGASettings, sections: dict[str, bytes], n: int) -> Decoded:
-    """The ``data`` section's streams for ``n`` kept frames, with the effector targets in the root frame."""
+def decode_streams(skeleton: Skeleton, s: PGASettings, sections: dict[str, bytes], n: int,
+                   window: tuple[int, int] | None = None) -> Decoded:
+    """The ``data`` section's streams for ``n`` kept frames, with the effector targets in the root frame; only
+    the kept frames ``[a, b)`` of ``window`` (those rows of the whole, to the bit; the trajectories' samples they
+    do not need are not computed)."""
     inner = inner_joints(skeleton)
     _, other_cols = position_columns(skeleton)
     if s.eff_mode == 2:
@@ -105,20 +155,26 @@ def decode_streams(skeleton: Skeleton, s: PGASettings, sections: dict[str, bytes
     mats = unpack_matrices(sections["data"], stream_count(s, other_cols.size))
     _check_shapes(mats, s, n, len(inner), len(effectors), other_cols.size)
     model = dequantise_model(model_from_matrices(mats[0], mats[1]), inner, s.k, s.basis_bits, s.mean_step)
-    root_pos = lifting.decode_rn(mats[2], n, s.pos_step, s.lod_root)
-    root_rot = lifting.decode_so3(mats[3], n, s.rot_step, s.lod_root)
-    if s.eff_mode == 2:
-        eff = np.zeros((n, 0, 3))
+    if window is None:
+        rn, so3, f = lifting.decode_rn, lifting.decode_so3, n
     else:
-        eff = lifting.decode_rn(mats[4], n, s.pos_step, s.lod_effectors).reshape(n, -1, 3)
+        rn = functools.partial(lifting.decode_rn_window, a=window[0], b=window[1])
+        so3 = functools.partial(lifting.decode_so3_window, a=window[0], b=window[1])
+        f = window[1] - window[0]
+    root_pos = rn(mats[2], n, s.pos_step, s.lod_root)
+    root_rot = so3(mats[3], n, s.rot_step, s.lod_root)
+    if s.eff_mode == 2:
+        eff = np.zeros((f, 0, 3))
+    else:
+        eff = rn(mats[4], n, s.pos_step, s.lod_effectors).reshape(f, -1, 3)
     if eff.shape[1] != len(effectors):
         raise FormatError(None, "corrupted PGA stream (effector count)")
     pos = 5
     coords = None
     if s.use_coords:
-        coords = lifting.decode_rn(mats[pos], n, s.coord_step, s.lod_coords)
+        coords = rn(mats[pos], n, s.coord_step, s.lod_coords)
         pos += 1
-    other = lifting.decode_rn(mats[pos], n, s.pos_step, 0) if other_cols.size else np.zeros((n, 0))
+    other = rn(mats[pos], n, s.pos_step, 0) if other_cols.size else np.zeros((f, 0))
     problem = make_problem(skeleton, model, effectors, other)
     if s.eff_mode == 1 and coords is not None:
         targets = problem.forward(coords)[0] + eff
@@ -154,30 +210,66 @@ def decode_rows(skeleton: Skeleton, s: PGASettings, sections: dict[str, bytes], 
     d = decode_streams(skeleton, s, sections, n)
     if s.lam_temporal > 0:
         return rebuild(skeleton, d, s, d.targets)[rows]
-    trans = d.problem.trans[rows] if d.problem.trans.ndim == 3 else d.problem.trans
-    problem = IKProblem(skeleton, d.model, d.effectors, d.problem.rest_rot, trans, d.problem.scale)
-    sub = Decoded(d.model, d.effectors, problem, d.root_pos[rows], d.root_rot[rows], d.targets[rows],
-                  None if d.coords is None else d.coords[rows], d.other[rows])
+    sub = _rows_of(d, rows)
     return rebuild(skeleton, sub, s, sub.targets, frames=n)  # the whole clip's path: its rows' values
 
 
+def decode_span(skeleton: Skeleton, s: PGASettings, sections: dict[str, bytes], n: int, lo: int, hi: int
+                ) -> np.ndarray:
+    """Channels ``(hi - lo, C)`` of the kept frames ``[lo, hi)`` of a file with a ``turns`` section and no
+    temporal regulariser: those rows of :func:`decode_kept`, to the bit (every stream decoded, the IK solved on
+    those frames only, on the whole clip's path, the stored turns unwrapping them)."""
+    sub = decode_streams(skeleton, s, sections, n, (lo, hi))
+    return rebuild(skeleton, sub, s, sub.targets, frames=n, unwrap=stored_turns(skeleton, sections, n, lo))
+
+
+def _rows_of(d: Decoded, rows: np.ndarray | slice) -> Decoded:
+    """The decoded streams of some kept frames only (their IK problem with them)."""
+    trans = d.problem.trans[rows] if d.problem.trans.ndim == 3 else d.problem.trans
+    problem = IKProblem(d.problem.skeleton, d.model, d.effectors, d.problem.rest_rot, trans, d.problem.scale)
+    return Decoded(d.model, d.effectors, problem, d.root_pos[rows], d.root_rot[rows], d.targets[rows],
+                   None if d.coords is None else d.coords[rows], d.other[rows])
+
+
 def decode_kept(skeleton: Skeleton, s: PGASettings, sections: dict[str, bytes], n: int,
-                edit: dict[int, np.ndarray] | None = None) -> np.ndarray:
-    """Channels ``(n, C)`` of the ``n`` kept frames; ``edit`` as in :func:`decode_channels`."""
+                edit: dict[int, np.ndarray] | None = None, unwrap: Unwrapper | None = None) -> np.ndarray:
+    """Channels ``(n, C)`` of the ``n`` kept frames; ``edit`` as in :func:`decode_channels`; ``unwrap``: the
+    file's stored turns (:mod:`.turns`) by default, else np.unwrap (edited targets: np.unwrap)."""
     d = decode_streams(skeleton, s, sections, n)
     targets = d.targets
     if edit:
         targets = targets.copy()
         for slot, traj in edit.items():
             targets[:, slot] = targets_in_root_frame(traj[:, None], d.root_pos, d.root_rot)[:, 0]
-    return rebuild(skeleton, d, s, targets)
+    elif unwrap is None:
+        unwrap = stored_turns(skeleton, sections, n)
+    return rebuild(skeleton, d, s, targets, unwrap=unwrap)
+
+
+def stored_turns(skeleton: Skeleton, sections: dict[str, bytes], n: int, first: int = 0) -> Unwrapper | None:
+    """The unwrapper of the file's ``turns`` section for kept frames from ``first`` (None: the file has none)."""
+    if turns.SECTION not in sections:
+        return None
+    return turns.Turns.from_bytes(sections[turns.SECTION], n, skeleton.rotation_columns()).unwrapper(first)
+
+
+def with_turns(skeleton: Skeleton, sections: dict[str, bytes], frames: int) -> dict[str, bytes]:
+    """An encoder's final sections of a clip of ``frames`` frames, with its ``turns`` section where the clip is
+    coded with the seekable layout (the events of the angles the decoder's IK gives, :mod:`.turns`)."""
+    if not seekable(frames) or turns.SECTION in sections:
+        return sections
+    s = PGASettings.from_bytes(sections["params"])
+    n = frames - len(s.outliers)
+    raw = decode_kept(skeleton, s, sections, n, unwrap=turns.raw) if n else np.zeros((0, skeleton.n_channels))
+    events = turns.Turns.of(raw, skeleton.rotation_columns(), 360.0 if skeleton.angle_unit == "deg" else 2 * np.pi)
+    return {**sections, turns.SECTION: events.to_bytes()}
 
 
 def rebuild(skeleton: Skeleton, d: Decoded, s: PGASettings, targets: np.ndarray,
-            frames: int | None = None) -> np.ndarray:
+            frames: int | None = None, unwrap: Unwrapper | None = None) -> np.ndarray:
     """IK and channel assembly for the kept frames. Always returns finite values. ``frames``: the kept frames
     of the clip ``d`` is taken from (None: ``d``'s), which picks the compiled or the NumPy path
-    (:func:`ikjit.kernels`)."""
+    (:func:`ikjit.kernels`); ``unwrap``: how the angles are unwrapped (:func:`.channels.finish_channels`)."""
     n = d.root_pos.shape[0]
     clip = n if frames is None else frames
     model = d.model
@@ -201,10 +293,10 @@ def rebuild(skeleton: Skeleton, d: Decoded, s: PGASettings, targets: np.ndarray,
                                     180.0 / np.pi if skeleton.angle_unit == "deg" else 1.0, out)
         if bad:
             raise FormatError(None, "corrupted PGA stream (poses out of range)")
-        return finish_channels(skeleton, out, d.root_pos, d.other)
+        return finish_channels(skeleton, out, d.root_pos, d.other, unwrap)
     local = np.broadcast_to(np.eye(3), (n, skeleton.n_joints, 3, 3)).copy()
     local[:, 0] = d.root_rot
     local[:, model.joints] = pose(model, x, clip)
     if not np.isfinite(local).all():  # only damaged streams (huge steps, loadings or coordinates) get here
         raise FormatError(None, "corrupted PGA stream (poses out of range)")
-    return channels_from_pose(skeleton, local, d.root_pos, d.other)
+    return channels_from_pose(skeleton, local, d.root_pos, d.other, unwrap)

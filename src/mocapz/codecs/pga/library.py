@@ -31,6 +31,7 @@ from mocapz.codecs.correction.wrap import corrected
 from mocapz.codecs.library import LibraryMode, Sections, layout_key
 from mocapz.codecs.pga.codec import DECODE, ENCODE, VERSION, _base_options
 from mocapz.codecs.pga.decode import decode as decode_single
+from mocapz.codecs.pga.decode import with_turns
 from mocapz.codecs.pga.effectors import find_effectors
 from mocapz.codecs.pga.encode import Prepared, encode_prepared, prepare
 from mocapz.codecs.pga.joints import check_skeleton, inner_joints
@@ -135,6 +136,7 @@ def encode_member(p: Prepared, shared: SharedModel, options: dict[str, Any]) -> 
         sections = search(p, fixed, target)[0]
     else:
         sections = encode_prepared(p, default_settings(p, fixed, options))
+    sections = with_turns(p.motion.skeleton, sections, p.motion.n_frames)
     if "data" in sections:
         data, pos = sections["data"], 0
         for _ in range(MODEL_MATRICES):

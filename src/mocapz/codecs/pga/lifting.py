@@ -79,48 +79,92 @@ def plan(n: int) -> list[Level]:
     return levels
 
 
-def _predict_rn(recon: np.ndarray, level: Level) -> np.ndarray:
-    """Predictions of the level's odd samples: the stencils' weighted sums of strided views of the even
-    samples (every stencil's rows are consecutive; the taps are added in stencil order)."""
+def _predict_rn(recon: np.ndarray, level: Level, first: int = 0, stop: int | None = None) -> np.ndarray:
+    """Predictions of the level's odd samples ``[first, stop)`` (all by default): the stencils' weighted sums of
+    strided views of the even samples (every stencil's rows are consecutive; the taps are added in stencil
+    order)."""
     pos = level.positions
-    pred = np.empty((pos.size, recon.shape[1]))
-    if not pos.size:
+    stop = pos.size if stop is None else stop
+    pred = np.empty((max(stop - first, 0), recon.shape[1]))
+    if not pred.shape[0]:
         return pred
     s = int(pos[0])
     even = recon[0 :: 2 * s]  # even[t] is sample 2st; odd row t is sample s + 2st
     for rows, nb, w, _ in level.groups:
-        r0, r1 = int(rows[0]), int(rows[-1]) + 1
-        if r1 - r0 != rows.size:  # pragma: no cover - stencil rows are always consecutive
-            pred[rows] = np.tensordot(recon[nb], w, axes=([1], [0]))
+        r0, r1 = max(int(rows[0]), first), min(int(rows[-1]) + 1, stop)
+        if r1 <= r0:
             continue
+        if int(rows[-1]) + 1 - int(rows[0]) != rows.size:  # pragma: no cover - stencil rows are always consecutive
+            raise AssertionError("stencil rows are not consecutive")
         acc = None
         for tap, wt in enumerate(w):
-            e0 = int(nb[0, tap]) // (2 * s)  # the tap's sample for the first row (an even multiple of s)
+            e0 = int(nb[r0 - int(rows[0]), tap]) // (2 * s)  # the tap's sample for row r0 (an even multiple of s)
             term = wt * even[e0 : e0 + (r1 - r0)]
             acc = term if acc is None else acc + term
-        pred[r0:r1] = acc
+        pred[r0 - first:r1 - first] = acc
     return pred
 
 
-def _predict_so3(recon: np.ndarray, level: Level) -> np.ndarray:
-    pred = np.empty((level.positions.size, 3, 3))
+def _predict_so3(recon: np.ndarray, level: Level, first: int = 0, stop: int | None = None) -> np.ndarray:
+    stop = level.positions.size if stop is None else stop
+    pred = np.empty((max(stop - first, 0), 3, 3))
     for rows, nb, w, k0 in level.groups:
-        r0 = recon[nb[:, k0]]
-        t = so3.log(np.swapaxes(r0, -1, -2)[:, None] @ recon[nb])
-        pred[rows] = r0 @ so3.exp(np.tensordot(t, w, axes=([1], [0])))
+        keep = (rows >= first) & (rows < stop)
+        if keep.all():
+            r0 = recon[nb[:, k0]]
+            t = so3.log(np.swapaxes(r0, -1, -2)[:, None] @ recon[nb])
+            pred[rows - first] = r0 @ so3.exp(np.tensordot(t, w, axes=([1], [0])))
+        elif keep.any():  # a window: the rows it needs, in the tensordot of the whole group's shape (BLAS sums a
+            # row as the full decode does only in a matrix of the same shape), the other rows zeros
+            r0 = recon[nb[keep, k0]]
+            t = np.zeros((rows.size, *nb.shape[1:], 3))
+            t[keep] = so3.log(np.swapaxes(r0, -1, -2)[:, None] @ recon[nb[keep]])
+            pred[rows[keep] - first] = r0 @ so3.exp(np.tensordot(t, w, axes=([1], [0]))[keep])
     return pred
 
 
-def _pyramid(n: int, lod: int, recon: np.ndarray, predict: Callable[[np.ndarray, Level], np.ndarray],
-             refine: Callable[[np.ndarray, np.ndarray], np.ndarray]) -> None:
+def _pyramid(n: int, lod: int, recon: np.ndarray, predict: Callable[..., np.ndarray],
+             refine: Callable[[np.ndarray, np.ndarray], np.ndarray], window: tuple[int, int] | None = None) -> None:
     """The coarse-to-fine pass shared by every coder and decoder: predict each level's odd samples from
     the reconstruction so far, then ``refine(positions, prediction)`` (code or apply the details), except on
-    the ``lod`` finest levels, which keep the prediction."""
+    the ``lod`` finest levels, which keep the prediction. ``window``: only the samples frames ``[a, b)`` need
+    (:func:`reach`; the others are left as they are), ``refine`` then takes the level's index and row range
+    first."""
     levels = plan(n)
+    ranges = reach(n, *window) if window is not None else None
     for li, level in enumerate(levels):
-        pred = predict(recon, level)
         dropped = len(levels) - 1 - li < lod
-        recon[level.positions] = pred if dropped else refine(level.positions, pred)
+        if ranges is None:
+            pred = predict(recon, level)
+            recon[level.positions] = pred if dropped else refine(level.positions, pred)
+            continue
+        lo, hi = ranges[li]
+        first, stop = np.searchsorted(level.positions, [lo, hi + 1])
+        pos = level.positions[first:stop]
+        pred = predict(recon, level, int(first), int(stop))
+        recon[pos] = pred if dropped else refine(li, int(first), int(stop), pos, pred)
+
+
+def reach(n: int, a: int, b: int) -> list[tuple[int, int]]:
+    """Per level of :func:`plan` (coarsest first), the sample range ``[lo, hi]`` whose odd samples frames
+    ``[a, b)`` need: the frames themselves at the finest level, and at each coarser one the range below widened
+    by the 4-tap stencils' reach (3 steps of the level below each way)."""
+    lo, hi, out = a, b - 1, []
+    for lev in range(n_levels(n)):  # finest first
+        out.append((lo, hi))
+        s = 1 << lev
+        lo, hi = max(0, lo - 3 * s), min(n - 1, hi + 3 * s)
+    return out[::-1]
+
+
+def _level_rows(n: int, lod: int) -> list[int]:
+    """The first integer row of every level of :func:`plan`'s details (coarsest first; row 0 is sample 0)."""
+    levels, out, row = plan(n), [], 1
+    for li, level in enumerate(levels):
+        out.append(row)
+        if len(levels) - 1 - li >= lod:
+            row += level.positions.size
+    return out
 
 
 class _Reader:
@@ -187,6 +231,32 @@ def decode_so3(q: np.ndarray, n: int, step: float, lod: int) -> np.ndarray:
     reader = _Reader(q)
     _pyramid(n, lod, recon, _predict_so3, lambda pos, pred: pred @ so3.exp(reader.take(pos.size) * step))
     return recon
+
+
+def decode_rn_window(q: np.ndarray, n: int, step: float, lod: int, a: int, b: int) -> np.ndarray:
+    """Rows ``[a, b)`` of :func:`decode_rn`, to the bit, computing only the samples they need."""
+    recon = np.zeros((n, q.shape[1]))
+    recon[0] = q[0] * step
+    starts = _level_rows(n, lod)
+
+    def refine(li: int, first: int, stop: int, pos: np.ndarray, pred: np.ndarray) -> np.ndarray:
+        return pred + q[starts[li] + first:starts[li] + stop] * step
+
+    _pyramid(n, lod, recon, _predict_rn, refine, (a, b))
+    return recon[a:b]
+
+
+def decode_so3_window(q: np.ndarray, n: int, step: float, lod: int, a: int, b: int) -> np.ndarray:
+    """Rows ``[a, b)`` of :func:`decode_so3`, to the bit, computing only the samples they need."""
+    recon = np.empty((n, 3, 3))
+    recon[0] = so3.exp(q[:1] * step)[0]
+    starts = _level_rows(n, lod)
+
+    def refine(li: int, first: int, stop: int, pos: np.ndarray, pred: np.ndarray) -> np.ndarray:
+        return pred @ so3.exp(q[starts[li] + first:starts[li] + stop] * step)
+
+    _pyramid(n, lod, recon, _predict_so3, refine, (a, b))
+    return recon[a:b]
 
 
 def coefficient_rows(n: int, lod: int) -> int:

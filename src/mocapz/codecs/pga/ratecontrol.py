@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from mocapz.codecs.pga.decode import decode_channels, decode_rows
+from mocapz.codecs.pga.decode import decode_channels, decode_rows, with_turns
 from mocapz.codecs.pga.effectors import find_effectors
 from mocapz.codecs.pga.encode import Prepared, encode_prepared, prepare
 from mocapz.codecs.pga.model import k_for_variance
@@ -44,8 +44,8 @@ def encode(motion: Motion, **options: Any) -> dict[str, bytes]:
     if "k" in fixed and fixed["k"] > dim:
         raise OptionError(f"geodesics must be between 1 and {dim} (the pose dimension), got {fixed['k']}")
     if not target.active:
-        return encode_prepared(p, default_settings(p, fixed, options))
-    return search(p, fixed, target)[0]
+        return with_turns(motion.skeleton, encode_prepared(p, default_settings(p, fixed, options)), motion.n_frames)
+    return with_turns(motion.skeleton, search(p, fixed, target)[0], motion.n_frames)
 
 
 def default_settings(p: Prepared, fixed: dict[str, Any], options: dict[str, Any] | None = None) -> PGASettings:
