@@ -39,12 +39,13 @@ def search(clip: Clip, base: np.ndarray, target: Target, depth: int | None = Non
 def search_bases(clip: Clip, bases: list[np.ndarray], extra: list[int], target: Target,
                  depth: int | None = None, effort: str = "default") -> tuple[int, Correction]:
     """The base (``(frames, columns)`` values the correction is added to, each costing ``extra`` bytes of its
-    own) and the correction coding the clip smallest, ``(index, correction)``; the first base's settings are
-    searched as :func:`search` does, the others' at the lifting depth it chose. On a short clip every base is
-    searched whole; on a long one the bases are compared on the two windows (their corrections' bytes scaled
-    to the clip, plus their own) and only the best is coded whole, verified, and searched on its own if it
-    misses (then the other bases are searched whole as well). The smallest is returned, met or not: the
-    caller says what missed.
+    own) and the correction coding the clip smallest, ``(index, correction)``. On a short clip every base is
+    searched whole, the first one's settings as :func:`search` does, the others at the lifting depth it chose;
+    on a long one the bases are compared on the two windows (their corrections' bytes scaled to the clip, plus
+    their own; the depth searched on the base of the fewest bytes of its own, a base whose own bytes alone reach
+    another's prediction left out: :func:`_predict`) and only the best is coded whole, verified, and searched on
+    its own if it misses (then the other bases are searched whole as well). The smallest is returned, met or
+    not: the caller says what missed.
 
     ``effort`` (the codec option): ``"fast"`` tries one lifting depth, :data:`FAST_DEPTH` (then the windows of a
     long clip only choose between bases, or start a distortion or ARMS target's search: one base and a max
@@ -78,7 +79,8 @@ def _search_bases(clip: Clip, bases: list[np.ndarray], extra: list[int], target:
     best = int(np.argmin([p[0] for p in predicted]))
     _, start, setting = predicted[best]
     cor = bound_search(clip, bases[best], target, *setting, start=start)
-    first = _settings(clip, depth if best == 0 else predicted[0][2][1])[0]
+    searched = _cheapest(extra)
+    first = _settings(clip, depth if best == searched else predicted[searched][2][1])[0]
     if not target.met(cor.errors) and setting != first:
         del cor  # replaced: not kept beside its replacement
         cor = bound_search(clip, bases[best], target, *first, start=start)
@@ -92,20 +94,29 @@ def _predict(clip: Clip, parts: list[tuple[Clip, slice]], bases: list[np.ndarray
              target: Target, depth: int | None) -> list[tuple[float, float, tuple[float, int]]]:
     """Per base, what the windows ``parts`` of a long clip predict: the clip's bytes (its correction's, scaled
     from the windows' to the clip, plus the base's own ``extra``), the bound to start the whole clip's search
-    from and the ``(relax_by, depth)`` setting; the first base's depth is searched (or ``depth``), the others
-    use the one it chose."""
+    from and the ``(relax_by, depth)`` setting. The bases go from the cheapest of their own (the correction
+    alone first, :func:`_cheapest`): its depth is searched (or ``depth``), the others use the one it chose, and
+    a base whose own bytes are no fewer than a base's whole predicted bytes is not tried (it cannot be the
+    smaller: a correction costs bytes; its prediction is infinite)."""
     share = clip.motion.n_frames / sum(c.motion.n_frames for c, _ in parts)
-    predicted: list[tuple[float, float, tuple[float, int]]] = []  # per base: bytes, start bound, setting
-    for i, base in enumerate(bases):
-        dp = depth if i == 0 else predicted[0][2][1]
-        settings = _settings(clip, dp)
+    settings = _settings(clip, depth)
+    predicted: list[tuple[float, float, tuple[float, int]]] = [(math.inf, 0.0, settings[0])] * len(bases)
+    for i in sorted(range(len(bases)), key=lambda i: extra[i]):
+        if extra[i] >= min(p[0] for p in predicted):
+            continue
         # per window and setting (size, bound): the windows' corrections themselves are not kept
-        per_part = [[(c.size, c.bound) for c in _each_setting(w, base[a], target, settings)] for w, a in parts]
+        per_part = [[(c.size, c.bound) for c in _each_setting(w, bases[i][a], target, settings)] for w, a in parts]
         sizes = [sum(p[k][0] for p in per_part) for k in range(len(settings))]
         k = int(np.argmin(sizes))
         start = math.exp(float(np.mean([math.log(p[k][1]) for p in per_part])))
-        predicted.append((extra[i] + share * sizes[k], start, settings[k]))
+        predicted[i] = (extra[i] + share * sizes[k], start, settings[k])
+        settings = _settings(clip, settings[k][1])  # the next bases: at the depth the cheapest one chose
     return predicted
+
+
+def _cheapest(extra: list[int]) -> int:
+    """The base of the fewest bytes of its own (the first of equals): the one whose depth is searched."""
+    return min(range(len(extra)), key=lambda i: extra[i])
 
 
 def _settings(clip: Clip, depth: int | None) -> list[tuple[float, int]]:
