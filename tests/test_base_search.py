@@ -1,6 +1,7 @@
-"""The correction's choice between bases on a long clip (:func:`mocapz.codecs.correction.search.search_bases`):
+"""The correction's choice between bases (:func:`mocapz.codecs.correction.search.search_bases`): on a long clip
 a base whose own bytes alone reach another base's predicted total is never tried on the windows (it cannot be the
-smaller), the others are, at the lifting depth searched on the base of the fewest bytes of its own."""
+smaller), the others are, at the lifting depth searched on the base of the fewest bytes of its own; a short clip's
+bases, searched whole, go from the cheapest as well."""
 
 from __future__ import annotations
 
@@ -56,3 +57,37 @@ def test_bases_that_may_win_are_tried_at_the_depth_the_cheapest_chose(clip: Clip
     assert {d for first, d in windows if first == float(zero.flat[0])} == depths  # the cheapest: every depth
     assert len({d for first, d in windows if first == float(model.flat[0])}) == 1  # the other: the one it chose
     assert best in (0, 1)
+
+
+@pytest.fixture(scope="module")
+def short() -> Clip:
+    return Clip(mocapz.load(data_path("cmu/bvh/12_01.bvh")).slice(0, 400), True)  # searched whole
+
+
+def test_a_short_clips_bases_go_from_the_cheapest(short: Clip, monkeypatch: pytest.MonkeyPatch) -> None:
+    """On a short clip (each base searched whole), the base of the fewest bytes of its own is searched first, at
+    every depth, whatever the order it is given in; one that may win is searched at the depth it chose; one whose
+    own bytes reach its total is not fitted (before, the first base given chose the depth for all: patterns took
+    the zero base at its model's depth, 9,554 B on test_mocapbank.bvh where quant wrote 6,348)."""
+    zero = short.zero_base()
+    model = zero + 0.25
+    target = Target(max_error=1.0 / short.motion.unit_cm)
+    depths = {max(1, short.levels + d) for d in search.DEPTHS}
+    calls = _counting(monkeypatch)
+    best, cor = search.search_bases(short, [model, zero], [40, 0], target)
+    assert {d for n, first, d in calls if first == float(zero.flat[0])} == depths
+    assert len({d for n, first, d in calls if first == float(model.flat[0])}) == 1  # at the depth it chose
+    assert calls[0][1] == float(zero.flat[0])  # the cheapest first, though given second
+    calls.clear()
+    best, cor = search.search_bases(short, [model, zero], [10**9, 0], target)
+    assert best == 1 and target.met(cor.errors)
+    assert calls and all(first == float(zero.flat[0]) for _, first, _ in calls)  # the dear base: no fit at all
+
+
+def test_patterns_on_a_short_clip_is_no_larger_than_its_correction_alone() -> None:
+    """The user's view: on a short real clip the codec with a model base (patterns) writes no more than the
+    correction alone would (quant's zero base and the same correction: a few bytes of header apart)."""
+    m = mocapz.load(data_path("other/bvh/bvh-python/test_mocapbank.bvh"))
+    patterns = mocapz.compress(m, "patterns", max_error="1cm")
+    quant = mocapz.compress(m, "quant", max_error="1cm")
+    assert len(patterns) <= len(quant) + 16, (len(patterns), len(quant))

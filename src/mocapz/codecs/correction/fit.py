@@ -295,7 +295,8 @@ def fit(clip: Clip, base: np.ndarray, e: float, relax_by: float = bounds.RELAX, 
         "c.codes": pack_uint64(codes.astype(np.uint64)),
         "c.levels": window.pack_levels(levels, frames, depth) if seek
         else encode_int_matrix(np.diff(levels, axis=0, prepend=0)),
-        "c.res": window.pack_res(q, frames, depth) if seek else lifting.pack(q, frames, depth, clip.prefix_of(base)),
+        "c.res": window.pack_res(q, frames, depth) if seek
+        else lifting.pack(q, frames, depth, clip.prefix_of(base), lay.group),
     }
     size = sum(len(v) + 8 for v in sections.values())
     return Correction(sections, size, errors, e, jit, added, depth, settled)

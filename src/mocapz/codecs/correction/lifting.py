@@ -25,6 +25,8 @@ import numpy as np
 from mocapz.codecs.correction.compiled import kernels
 from mocapz.errors import FormatError
 from mocapz.format.entropy import decode_int_matrix, encode_int_matrix, read_uvarint, write_uvarint
+from mocapz.format.entropy_shared import decode_int_matrix as read_shared
+from mocapz.format.entropy_shared import encode_int_matrix as shared_int_matrix
 
 BIG = 1e30  # tolerance standing for "any value will do" (a column that moves no point)
 STEP = 1.0  # detail step, in tolerances (<= 2)
@@ -149,14 +151,17 @@ def _groups(frames: int, levels: int, split: int, continued: bool = False) -> li
     return [1, rows[0] - 1, *rows[1:]] if split & FIRST_APART and rows[0] > 1 else rows
 
 
-def pack(q: np.ndarray, frames: int, levels: int, prefix: np.ndarray | None = None) -> bytes:
+def pack(q: np.ndarray, frames: int, levels: int, prefix: np.ndarray | None = None,
+         groups: np.ndarray | None = None) -> bytes:
     """The bytes of the integers of :func:`quantise` for a clip of ``frames`` frames: a layout byte, then range
     coded streams each after its uvarint byte length: the coarse knots (time differences, the first row
     absolute; the first row a stream of its own where that is smaller), then the details, all levels in one
     stream or one stream per level, whichever is smaller (the levels' magnitudes differ by orders and one
     stream's adaptive scales mix them; each stream costs scales per column, which a short clip or block may not
     win back). ``prefix``: a continued clip's (:func:`quantise`): the integers' first row is stored only where
-    the prefix is NaN, as a stream of its own first (if any)."""
+    the prefix is NaN, as a stream of its own first (if any). ``groups`` ``(columns,)``: the columns' groups
+    (joints, markers), which may share their streams' scales (:mod:`mocapz.format.entropy_shared`; :func:`read`
+    is then given the same)."""
     if not q.shape[1]:
         return b""
     continued, head = prefix is not None, b""
@@ -170,7 +175,8 @@ def pack(q: np.ndarray, frames: int, levels: int, prefix: np.ndarray | None = No
 
     def part(pos: int, rows: int) -> bytes:
         if (pos, rows) not in coded:
-            coded[pos, rows] = encode_int_matrix(q[pos:pos + rows])
+            part_q = q[pos:pos + rows]
+            coded[pos, rows] = encode_int_matrix(part_q) if groups is None else shared_int_matrix(part_q, groups)
         return coded[pos, rows]
 
     def layout(split: int) -> bytes:
@@ -187,7 +193,8 @@ def pack(q: np.ndarray, frames: int, levels: int, prefix: np.ndarray | None = No
     return min((layout(first | split) for split in (SPLIT_TWO, SPLIT_LEVELS)), key=len)
 
 
-def read(data: bytes, frames: int, cols: int, levels: int, prefix: np.ndarray | None = None) -> np.ndarray:
+def read(data: bytes, frames: int, cols: int, levels: int, prefix: np.ndarray | None = None,
+         groups: np.ndarray | None = None) -> np.ndarray:
     """The integers of :func:`pack` for a clip of ``frames`` x ``cols`` values (each stream's shape is checked
     before anything is allocated), for a continued clip the same ``prefix``."""
     continued = prefix is not None
@@ -211,7 +218,9 @@ def read(data: bytes, frames: int, cols: int, levels: int, prefix: np.ndarray | 
         size, pos = read_uvarint(data, pos)
         if pos + size > len(data):
             raise FormatError(None, "corrupted correction stream (part length)")
-        parts.append(decode_int_matrix(data[pos:pos + size], (rows, cols)))
+        part = data[pos:pos + size]
+        parts.append(decode_int_matrix(part, (rows, cols)) if groups is None else
+                     read_shared(part, (rows, cols), groups))
         pos += size
     if pos != len(data):
         raise FormatError(None, "corrupted correction stream (trailing bytes)")

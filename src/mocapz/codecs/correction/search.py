@@ -70,10 +70,7 @@ def _search_bases(clip: Clip, bases: list[np.ndarray], extra: list[int], target:
         and target.max_distortion is None and target.max_arms is None
     parts = [(clip, slice(None))] if effort == "best" or one_fit else _windows(clip)
     if parts[0][0] is clip:
-        found: list[Correction] = []
-        for base in bases:
-            found.append(_search_whole(clip, base, target, depth if not found else found[0].depth))
-        return _smallest(found, extra)
+        return _whole_bases(clip, bases, extra, target, depth)
     predicted = _predict(clip, parts, bases, extra, target, depth)
     del parts  # the windows' clips are not kept beside the whole clip's coding (peak memory)
     best = int(np.argmin([p[0] for p in predicted]))
@@ -123,6 +120,19 @@ def _settings(clip: Clip, depth: int | None) -> list[tuple[float, int]]:
     """The ``(relax_by, depth)`` settings tried: every depth of :data:`DEPTHS`, or the one given."""
     depths = [depth] if depth is not None else [max(1, clip.levels + d) for d in DEPTHS]
     return list(dict.fromkeys((r, dp) for dp in depths for r in RELAXES))
+
+
+def _whole_bases(clip: Clip, bases: list[np.ndarray], extra: list[int], target: Target, depth: int | None
+                 ) -> tuple[int, Correction]:
+    """A short clip's bases each searched whole, from the cheapest of their own bytes (the correction alone
+    first, :func:`_cheapest`): its lifting depth searched (or ``depth``), the others at the one it chose; a base
+    whose own bytes alone reach a met coding's whole bytes is not tried (it cannot be the smaller)."""
+    found: dict[int, Correction] = {}
+    for i in sorted(range(len(bases)), key=lambda i: extra[i]):
+        if any(target.met(c.errors) and extra[i] >= extra[j] + c.size for j, c in found.items()):
+            continue
+        found[i] = _search_whole(clip, bases[i], target, depth if not found else next(iter(found.values())).depth)
+    return min(sorted(found.items()), key=lambda f: extra[f[0]] + f[1].size)  # the first of equals
 
 
 def _search_whole(clip: Clip, base: np.ndarray, target: Target, depth: int | None) -> Correction:

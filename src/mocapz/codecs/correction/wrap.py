@@ -181,7 +181,7 @@ def apply(sections: Sections, header: ClipHeader, decode: Decoder) -> AnyMotion:
             q = window.read_res(sections["c.res"], frames, cols, levels)
         else:
             dlev = decode_int_matrix(sections["c.levels"], (frames, n_groups))
-            q = lifting.read(sections["c.res"], frames, cols, levels, prefix)
+            q = lifting.read(sections["c.res"], frames, cols, levels, prefix, groups)
             lev = np.cumsum(dlev, axis=0)
             if lev.size and (lev.min() < 0 or lev.max() > 60):
                 raise FormatError(None, "corrupted correction levels")
