@@ -326,7 +326,7 @@ def _layout_cases(kind: str) -> Iterator[tuple[str, bytes]]:
 
 @pytest.mark.parametrize("kind", KINDS)
 def test_damaged_layout(kind: str) -> None:
-    _files(kind)  # the valid files are made before the limits apply (encoders import scikit-learn...)
+    _files(kind)  # the valid files are made before the limits apply (encoders import scipy.cluster, numba...)
     count, bad = _referee(_layout_cases(kind))
     assert count > 200
     assert not bad, _report(bad)

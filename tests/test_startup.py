@@ -7,7 +7,7 @@ from __future__ import annotations
 import subprocess
 import sys
 
-HEAVY = ("scipy.ndimage", "scipy.spatial", "scipy.interpolate", "scipy.optimize", "numba", "sklearn")
+HEAVY = ("scipy.ndimage", "scipy.spatial", "scipy.interpolate", "scipy.optimize", "numba", "sklearn", "scipy.cluster")
 
 
 def test_importing_the_command_line_loads_no_heavy_module() -> None:

@@ -49,7 +49,7 @@ def one_thread() -> contextlib.AbstractContextManager[Any]:
     order with the thread count, so one thread also gives the same bytes on every machine."""
     try:
         from threadpoolctl import ThreadpoolController
-    except ImportError:  # pragma: no cover - threadpoolctl comes with scikit-learn
+    except ImportError:  # pragma: no cover - threadpoolctl is a dependency
         return contextlib.nullcontext()
     if not _CONTROLLER:
         _CONTROLLER.append(ThreadpoolController())

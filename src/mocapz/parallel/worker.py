@@ -45,7 +45,7 @@ def one_blas_thread() -> contextlib.AbstractContextManager[Any]:
     """BLAS/OpenMP limited to one thread (as a context manager; the limit applies as soon as it is made)."""
     try:
         from threadpoolctl import threadpool_limits
-    except ImportError:  # pragma: no cover - threadpoolctl comes with scikit-learn
+    except ImportError:  # pragma: no cover - threadpoolctl is a dependency
         return contextlib.nullcontext()
     return threadpool_limits(limits=1)  # applied at once (the worker's limit for good, :func:`_limit_blas_once`)
 

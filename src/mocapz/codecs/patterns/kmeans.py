@@ -1,7 +1,7 @@
 """Adaptive K-means pattern extraction (paper §III.C).
 
 Normalised segments are vectors ``x_j`` (``L`` frames x members x 3 values). Clustering starts with an
-initial ``K`` (scikit-learn ``MiniBatchKMeans``, fixed seed) and grows ``K`` until the error criterion
+initial ``K`` (scipy ``kmeans2``, k-means++ seeds, fixed seed) and grows ``K`` until the error criterion
 holds: MaxError (eq. 2, every segment within ``tol`` of its cluster mean) or AveError (eq. 1, mean squared
 error at most ``tol**2``). ``K`` grows without re-clustering from scratch: only the clusters that break the
 bound are split in two (2-means inside the cluster), so the time stays near-linear in the data.
@@ -20,7 +20,7 @@ import numpy as np
 
 MAX = "max"
 AVE = "ave"
-SMALL = 5000  # up to this many segments the initial clustering is exact K-means, beyond it mini-batch
+ITERATIONS = 30  # Lloyd iterations of the initial clustering
 
 
 @dataclass
@@ -120,17 +120,14 @@ def _impute(x: np.ndarray, o: np.ndarray) -> np.ndarray:
 
 
 def _initial(x: np.ndarray, k: int, seed: int) -> np.ndarray:
+    """Labels of an initial ``k``-means clustering (scipy ``kmeans2``, k-means++ seeds from ``seed``)."""
     if k <= 1:
         return np.zeros(len(x), dtype=np.int64)
-    from sklearn.cluster import KMeans, MiniBatchKMeans
+    from scipy.cluster.vq import kmeans2
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        if len(x) <= SMALL:
-            km = KMeans(n_clusters=k, random_state=seed, n_init=1, max_iter=100)
-        else:
-            km = MiniBatchKMeans(n_clusters=k, random_state=seed, n_init=3, batch_size=2048, max_iter=50)
-        lab = km.fit_predict(x).astype(np.int64)
+        _, lab = kmeans2(x, k, iter=ITERATIONS, minit="++", rng=np.random.default_rng(seed), check_finite=False)
     _, lab = np.unique(lab, return_inverse=True)
     return lab.astype(np.int64)
 
