@@ -96,6 +96,7 @@ class StreamEncoder:
         self.started = False
         self.closed = False
         self.last: dict[str, bytes] | None = None  # the previous block's sections (:func:`.blocks.thin`)
+        self.names: list[str] | None = None  # the previous block's section names as written (a repeat record's)
 
     def write(self, frames: np.ndarray | AnyMotion) -> bytes:
         """Add frames ``(n, channels)`` (skeleton) or ``(n, markers, 3)`` (markers; NaN gaps) in file units;
@@ -174,8 +175,9 @@ class StreamEncoder:
         self.past = np.concatenate([past, rows])[-self.history:]
         self.past_pos, self.past_ok = pos[-self.history:], ok[-self.history:]
         self.frames += len(rows)
-        record = framing.block_bytes(len(rows), thin(self.last, sections))
-        self.last = sections
+        written = thin(self.last, sections)
+        record = framing.block_bytes(len(rows), written, self.names)
+        self.last, self.names = sections, framing.names_of(written)
         self.crc = zlib.crc32(record, self.crc)
         return record
 
