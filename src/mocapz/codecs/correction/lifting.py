@@ -24,7 +24,8 @@ import numpy as np
 
 from mocapz.codecs.correction.compiled import kernels
 from mocapz.errors import FormatError
-from mocapz.format.entropy import decode_int_matrix, encode_int_matrix, read_uvarint, write_uvarint
+from mocapz.format import entropy_parts
+from mocapz.format.entropy import HAVE_CONSTRICTION, decode_int_matrix, encode_int_matrix, read_uvarint, write_uvarint
 from mocapz.format.entropy_shared import decode_int_matrix as read_shared
 from mocapz.format.entropy_shared import encode_int_matrix as shared_int_matrix
 
@@ -136,6 +137,7 @@ def row_groups(frames: int, levels: int) -> list[int]:
 SPLIT_TWO, SPLIT_LEVELS = 0, 1  # c.res layouts: knots + all details, or knots + each level's details
 FIRST_APART = 2  # layout flag: the knots' first row (absolute values, the rest are time differences) is a stream
 # of its own (its magnitudes would widen the scales of every knot of its columns: a block of a clip pays it each)
+JOINT = 4  # layout flag: the parts (knots, each level's details) in one range stream (:mod:`.entropy_parts`)
 
 
 def _origin(prefix: np.ndarray) -> np.ndarray:
@@ -190,7 +192,11 @@ def pack(q: np.ndarray, frames: int, levels: int, prefix: np.ndarray | None = No
     knots = row_groups(frames, levels)[0]
     first = FIRST_APART if not continued and knots > 1 \
         and len(part(0, 1)) + len(part(1, knots - 1)) < len(part(0, knots)) else 0
-    return min((layout(first | split) for split in (SPLIT_TWO, SPLIT_LEVELS)), key=len)
+    candidates = [layout(first | split) for split in (SPLIT_TWO, SPLIT_LEVELS)]
+    if groups is not None and HAVE_CONSTRICTION:  # one stream for every part (a short clip's, a block's)
+        parts = np.split(q, np.cumsum(_groups(frames, levels, SPLIT_LEVELS | first, continued))[:-1])
+        candidates.append(bytes([JOINT | first]) + head + entropy_parts.encode(parts, groups))
+    return min(candidates, key=len)
 
 
 def read(data: bytes, frames: int, cols: int, levels: int, prefix: np.ndarray | None = None,
@@ -200,8 +206,9 @@ def read(data: bytes, frames: int, cols: int, levels: int, prefix: np.ndarray | 
     continued = prefix is not None
     if cols == 0:
         return np.zeros((0, 0), dtype=np.int64)
-    if not data or data[0] > SPLIT_LEVELS | FIRST_APART \
-            or (data[0] & FIRST_APART and (continued or row_groups(frames, levels)[0] < 2)):
+    if not data or data[0] > SPLIT_LEVELS | FIRST_APART | JOINT \
+            or (data[0] & FIRST_APART and (continued or row_groups(frames, levels)[0] < 2)) \
+            or (data[0] & JOINT and (data[0] & SPLIT_LEVELS or groups is None)):
         raise FormatError(None, "corrupted correction stream (layout)")
     parts, pos = [], 1
     if prefix is not None:
@@ -214,6 +221,9 @@ def read(data: bytes, frames: int, cols: int, levels: int, prefix: np.ndarray | 
             row0[:, free] = decode_int_matrix(data[pos:pos + size], (1, int(free.sum())))
             pos += size
         parts.append(row0)
+    if data[0] & JOINT:
+        rows = _groups(frames, levels, SPLIT_LEVELS | data[0] & FIRST_APART, continued)
+        return np.concatenate([*parts, *entropy_parts.decode(data[pos:], rows, cols, groups)])
     for rows in _groups(frames, levels, data[0], continued):
         size, pos = read_uvarint(data, pos)
         if pos + size > len(data):
