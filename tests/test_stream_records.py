@@ -56,13 +56,15 @@ def test_continued_blocks_are_repeat_records_and_cost_less(quant_stream) -> None
     kinds = _records(data)
     assert len(kinds) == 10 and kinds[0] == framing.BLOCK
     s = framing.read_stream(data)
-    names = [framing.names_of(thin(s.blocks[i - 1] if i else None, b)) for i, b in enumerate(s.blocks)]
-    # a repeat record exactly where the names repeat: all but the first block, the first to continue (it adds
-    # the empty section "<") and the last, shorter one (it does not continue)
-    assert kinds == [framing.REPEAT if i and names[i] == names[i - 1] else framing.BLOCK for i in range(10)]
-    assert kinds.count(framing.REPEAT) == 7
+    written = [thin(s.blocks[i - 1] if i else None, b) for i, b in enumerate(s.blocks)]
+    names = [framing.names_of(w) for w in written]
+    # a repeat record exactly where the names repeat (the empty section "<" aside: it is the record's kind),
+    # i.e. every block but the first
+    assert kinds == [(framing.REPEAT_CONTINUES if "<" in written[i] else framing.REPEAT)
+                     if i and names[i] == names[i - 1] else framing.BLOCK for i in range(10)]
+    assert kinds.count(framing.REPEAT_CONTINUES) == 8 and kinds.count(framing.REPEAT) == 1  # the last: alone
     full = _full_records(data)
-    assert len(full) - len(data) >= 30 * 7  # about 35 bytes a block
+    assert len(full) - len(data) >= 30 * 9  # about 35 bytes a block
     a, b = mocapz.decompress(data), mocapz.decompress(full)
     assert np.array_equal(a.values, b.values)
     assert mocapz.evaluate(m, a).max_err_cm <= 1.0 + 1e-9
@@ -95,9 +97,10 @@ def test_misplaced_or_damaged_repeat_records_are_format_errors(quant_stream) -> 
         mocapz.decompress(data[:start] + first + rest)
     # a length in a repeat record (the third block's) changed, its checksum fixed: the sections no longer parse
     records = [framing.block_bytes(s.block_frames[i], thin(s.blocks[i - 1] if i else None, s.blocks[i]),
-                                   framing.names_of(thin(s.blocks[i - 2], s.blocks[i - 1])) if i > 1 else None)
+                                   framing.names_of(thin(s.blocks[i - 2] if i > 1 else None, s.blocks[i - 1]))
+                                   if i else None)
                for i in range(3)]
-    assert [r[0] for r in records] == [framing.BLOCK, framing.BLOCK, framing.REPEAT]
+    assert [r[0] for r in records] == [framing.BLOCK, framing.REPEAT_CONTINUES, framing.REPEAT_CONTINUES]
     at = start + len(records[0]) + len(records[1])
     assert data[at:at + len(records[2])] == records[2]
     for pos, flip in ((3, 0x01), (3, 0x7F), (4, 0x02)):  # byte 0 kind, 1-2 frames (128), 3.. the lengths

@@ -9,9 +9,10 @@ Byte layout::
              previous block's is the empty mark ``"=name"``, :func:`mocapz.format.blocks.thin`),
              CRC-32 (little endian) of the record from its first byte
     repeat   a block whose sections have the names, in order, of the block record before it (a mark ``"=name"``
-             counting as ``name``): byte 2, uvarint frames (>= 1), per section in that order uvarint 0 for the
-             mark or its length + 1, then the sections' bytes in that order, CRC-32 of the record from its first
-             byte (a 1-s block of five sections saves about 35 bytes)
+             counting as ``name``, the empty section ``"<"`` not counted): byte 2 (byte 3: and the section
+             ``"<"``, last), uvarint frames (>= 1), per section in that order uvarint 0 for the mark or its
+             length + 1, then the sections' bytes in that order, CRC-32 of the record from its first byte (a 1-s
+             block of five sections saves about 35 bytes)
     end      byte 0, uvarint total frames (the blocks' sum), clip-wide sections, CRC-32 of every byte of the
              file before it
 
@@ -26,12 +27,12 @@ import zlib
 from dataclasses import dataclass, field
 
 from mocapz.errors import FormatError
-from mocapz.format.blocks import SAME, thicken
+from mocapz.format.blocks import CONTINUES, SAME, thicken
 from mocapz.format.container import MAGIC, read_sections, write_sections
 from mocapz.format.entropy import read_uvarint, write_uvarint
 
 STREAM_VERSION = 3
-BLOCK, END, REPEAT = 1, 0, 2
+BLOCK, END, REPEAT, REPEAT_CONTINUES = 1, 0, 2, 3
 MAX_BLOCK_FRAMES = 1 << 24
 
 
@@ -51,17 +52,19 @@ def block_bytes(frames: int, sections: dict[str, bytes], names: list[str] | None
     """One block record (``sections`` as written: thinned); ``names``: :func:`names_of` the block record
     before it (None: the first block), a repeat record when they are the same."""
     if names is not None and names_of(sections) == names:
-        body = bytes([REPEAT]) + write_uvarint(frames) \
-            + b"".join(write_uvarint(0 if k.startswith(SAME) else len(v) + 1) for k, v in sections.items()) \
-            + b"".join(sections.values())
+        listed = {k: v for k, v in sections.items() if k != CONTINUES}
+        body = bytes([REPEAT_CONTINUES if CONTINUES in sections else REPEAT]) + write_uvarint(frames) \
+            + b"".join(write_uvarint(0 if k.startswith(SAME) else len(v) + 1) for k, v in listed.items()) \
+            + b"".join(listed.values())
     else:
         body = bytes([BLOCK]) + write_uvarint(frames) + write_sections(sections)
     return body + struct.pack("<I", zlib.crc32(body) & 0xFFFFFFFF)
 
 
 def names_of(sections: dict[str, bytes]) -> list[str]:
-    """A written block's section names in order, a mark ``"=name"`` as ``name`` (what a repeat record repeats)."""
-    return [k[len(SAME):] if k.startswith(SAME) else k for k in sections]
+    """A written block's section names in order, a mark ``"=name"`` as ``name``, the empty section ``"<"`` left out
+    (what a repeat record repeats)."""
+    return [k[len(SAME):] if k.startswith(SAME) else k for k in sections if k != CONTINUES]
 
 
 def _repeat_sections(buf: memoryview, pos: int, names: list[str] | None) -> tuple[dict[str, bytes], int]:
@@ -156,8 +159,10 @@ class StreamReader:
                 return None
             kind = buf[0]
             frames, pos = read_uvarint(buf, 1)
-            if kind == REPEAT:
+            if kind in (REPEAT, REPEAT_CONTINUES):
                 sections, pos = _repeat_sections(buf, pos, self.names)
+                if kind == REPEAT_CONTINUES:
+                    sections[CONTINUES] = b""
             else:
                 sections, pos = read_sections(buf, pos, "stream block")
         except FormatError as exc:
@@ -167,7 +172,7 @@ class StreamReader:
         if pos + 4 > len(buf):
             return None
         (crc,) = struct.unpack("<I", buf[pos:pos + 4])
-        if kind in (BLOCK, REPEAT):
+        if kind in (BLOCK, REPEAT, REPEAT_CONTINUES):
             if zlib.crc32(buf[:pos]) & 0xFFFFFFFF != crc:
                 raise FormatError(None, "corrupted stream block (checksum mismatch)")
             if not 1 <= frames <= MAX_BLOCK_FRAMES:
