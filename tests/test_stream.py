@@ -64,6 +64,7 @@ def test_lossy_stream_meets_its_target_near_the_offline_size() -> None:
     # kind says whether the block continues
     offline = mocapz.compress(m, "quant", max_error="1cm")
     assert len(data) - len(offline) <= 100 * math.ceil(m.n_frames / m.frame_rate)
+    assert len(data) <= 1.10 * len(offline)  # issue 13: within 10 % of the offline file
 
 
 def test_decoder_yields_blocks_as_bytes_arrive() -> None:
