@@ -17,27 +17,30 @@ from mocapz.format import stream as framing
 from mocapz.format.blocks import thin
 
 
+def _header_end(data: bytes) -> int:
+    """Where a stream's first block record starts."""
+    s = framing.read_stream(data)
+    return len(framing.header_bytes(s.codec, s.codec_version, s.layout))
+
+
 def _records(data: bytes) -> list[int]:
-    """The kinds of a stream's records, in order (parsed the way the reader does)."""
+    """The kinds of a stream's block records, in order: fed to the reader byte by byte, a record ends at the
+    byte that completes its block."""
     reader = framing.StreamReader()
-    kinds, pos = [], 0
-    reader.feed(data[:0])
-    for i in range(1, len(data) + 1):  # byte by byte: a record is complete at the byte that ends it
-        before = len(reader.stream.block_frames) if reader.stream else 0
-        reader.feed(data[i - 1:i])
-        if reader.stream and len(reader.stream.block_frames) > before:
-            kinds.append(data[pos])
-            pos = i
-        elif reader.stream and pos == 0:
-            pos = i  # the header is in
+    start = _header_end(data)
+    reader.feed(data[:start])
+    kinds = []
+    for i in range(start, len(data)):
+        if reader.feed(data[i:i + 1]):
+            kinds.append(data[start])
+            start = i + 1
     return kinds
 
 
 def _full_records(data: bytes) -> bytes:
     """The same stream with every block written as a full record (no repeat record)."""
     s = framing.read_stream(data)
-    layout_end = len(framing.header_bytes(s.codec, s.codec_version, s.layout))
-    out, last = bytearray(data[:layout_end]), None
+    out, last = bytearray(data[:_header_end(data)]), None
     for frames, sections in zip(s.block_frames, s.blocks, strict=True):
         out += framing.block_bytes(frames, thin(last, sections))
         last = sections
@@ -80,14 +83,9 @@ def test_repeat_records_decode_as_bytes_arrive(quant_stream) -> None:
     assert dec.complete and np.array_equal(np.concatenate([g.values for g in got]), whole)
 
 
-def _first_block_at(data: bytes) -> int:
-    s = framing.read_stream(data)
-    return len(framing.header_bytes(s.codec, s.codec_version, s.layout))
-
-
 def test_misplaced_or_damaged_repeat_records_are_format_errors(quant_stream) -> None:
     _, data = quant_stream
-    start = _first_block_at(data)
+    start = _header_end(data)
     # the first block rewritten as a repeat record: there is no record before it to take the names from
     s = framing.read_stream(data)
     first = framing.block_bytes(s.block_frames[0], s.blocks[0], list(s.blocks[0]))
