@@ -27,6 +27,7 @@ from mocapz.format.planes import (  # noqa: F401  (re-exported: the integer stre
     unpack_uint64,
     unpack_zigzag_columns,
     unpack_zigzag_rows,
+    unpack_zigzag_running,
     unzigzag,
     write_uvarint,
     zigzag,

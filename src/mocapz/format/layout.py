@@ -7,6 +7,7 @@ Offsets are stored as decimal text at their own precision, so they come back bit
 
 from __future__ import annotations
 
+import functools
 import json
 from typing import Any
 
@@ -16,6 +17,7 @@ import zstandard
 from mocapz.errors import FormatError
 from mocapz.format.entropy import read_uvarint, unzigzag, write_uvarint, zigzag
 from mocapz.format.layout_check import check_layout, check_offset_names
+from mocapz.format.planes import read_uvarints
 from mocapz.io.common import detect_decimals
 from mocapz.model.header import KEPT_METADATA, ClipHeader
 from mocapz.model.motion import AnyMotion, Motion
@@ -73,8 +75,14 @@ def skeleton_to_dict(sk: Skeleton) -> dict[str, Any]:
     return d
 
 
+@functools.lru_cache(maxsize=1024)
+def _channel_names(codes: str) -> tuple[str, ...]:
+    """The channel names of a joint's channel codes (``"XposYposZpos"``; checked by ``check_layout``)."""
+    return tuple(_LONG[codes[i : i + 4]] for i in range(0, len(codes), 4))
+
+
 def skeleton_from_dict(d: dict[str, Any]) -> Skeleton:
-    chs = [tuple(_LONG[s[i : i + 4]] for i in range(0, len(s), 4)) for s in d["channels"]]
+    chs = [_channel_names(s) for s in d["channels"]]
     n = len(d["names"])
     axis = np.asarray(d["axis"], dtype=np.float64).reshape(n, 3, 3) if "axis" in d else None
     return Skeleton(
@@ -246,14 +254,11 @@ def decode_layout(data: bytes) -> dict[str, Any]:
 def _unpack_offsets(d: dict[str, Any], block: bytes) -> None:
     count = check_offset_names(d)
     q = d.pop("num_dec")
-    vals, pos = [], 0
-    for _ in range(3 * count):
-        v, pos = read_uvarint(block, pos)
-        vals.append(v)
+    vals, pos = read_uvarints(block, 0, 3 * count)
     if pos != len(block):
         raise FormatError(None, "corrupted layout header (offset block)")
     joints, ends = len(d["names"]), d["end_sites"]
-    nums = unzigzag(np.asarray(vals, dtype=np.uint64)) / 10.0**q
+    nums = unzigzag(vals) / 10.0**q
     d["offsets"] = nums[: 3 * joints].reshape(joints, 3).tolist()
     d["end_sites"] = [[j, nums[3 * joints + 3 * i : 3 * joints + 3 * i + 3].tolist(), name]
                       for i, (j, name) in enumerate(ends)]

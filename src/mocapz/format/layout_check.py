@@ -10,6 +10,8 @@ whose decimals cover every channel; frame counts and rates that are numbers in r
 
 from __future__ import annotations
 
+import functools
+import itertools
 import math
 from typing import Any
 
@@ -36,11 +38,21 @@ def _is_real(v: Any) -> bool:
     return _is_int(v) and abs(v) < 1 << 1000 or isinstance(v, float) and math.isfinite(v)
 
 
+def _reals(values: list[Any]) -> bool:
+    """Every item a finite number (:func:`_is_real`), checked at once."""
+    kinds = set(map(type, values))
+    if not kinds <= {int, float}:
+        return False  # bool, str, None, list...: not a number
+    if int in kinds and not all(abs(x) < 1 << 1000 for x in values if type(x) is int):
+        return False
+    return all(map(math.isfinite, values))
+
+
 def _int_list(d: dict[str, Any], field: str, size: int | None = None, low: int = -(1 << 62),
              high: int = 1 << 62) -> list[int]:
     """``d[field]``: a list of ints in ``[low, high]`` (of ``size`` items when given)."""
     v = d.get(field)
-    if not isinstance(v, list) or not all(_is_int(x) and low <= x <= high for x in v):
+    if not isinstance(v, list) or not set(map(type, v)) <= {int} or (v and not low <= min(v) <= max(v) <= high):
         raise _bad(field, f"a list of integers in {low}..{high} expected")
     if size is not None and len(v) != size:
         raise _bad(field, f"{len(v)} items where {size} are expected")
@@ -49,15 +61,16 @@ def _int_list(d: dict[str, Any], field: str, size: int | None = None, low: int =
 
 def _str_list(d: dict[str, Any], field: str, size: int | None = None) -> list[str]:
     v = d.get(field)
-    if not isinstance(v, list) or not all(isinstance(x, str) for x in v):
+    if not isinstance(v, list) or not set(map(type, v)) <= {str}:
         raise _bad(field, "a list of strings expected")
     if size is not None and len(v) != size:
         raise _bad(field, f"{len(v)} items where {size} are expected")
     return v
 
 
-def _vector(v: Any, field: str) -> None:
-    if not isinstance(v, list) or len(v) != 3 or not all(_is_real(x) for x in v):
+def _vectors(vs: list[Any], field: str) -> None:
+    """Every item of ``vs`` a list of three finite numbers."""
+    if not all(type(v) is list and len(v) == 3 for v in vs) or not _reals(list(itertools.chain.from_iterable(vs))):
         raise _bad(field, "three finite numbers expected")
 
 
@@ -116,28 +129,21 @@ def _check_skeleton(d: dict[str, Any]) -> int:
     orders = _str_list(d, "orders", n)
     n_channels = 0
     for j, (chs, order) in enumerate(zip(channels, orders, strict=True)):
-        codes = [chs[i : i + 4] for i in range(0, len(chs), 4)]
-        if len(chs) % 4 or any(c not in CHANNEL_CODES for c in codes) or len(set(codes)) != len(codes):
-            raise _bad("channels", f"joint {j}: unknown or repeated channels {chs[:40]!r}")
-        rot = sorted(c[0] for c in codes if c.endswith("rot"))
-        if sorted(order) != rot or len(set(order)) != len(order):
-            raise _bad("orders", f"joint {j}: rotation order {order[:8]!r} for rotation channels {''.join(rot)!r}")
-        n_channels += len(codes)
+        n_channels += _joint_channels(j, chs, order)
     offsets = d.get("offsets")
     if not isinstance(offsets, list) or len(offsets) != n:
         raise _bad("offsets", f"one offset per joint ({n}) expected")
-    for off in offsets:
-        _vector(off, "offsets")
+    _vectors(offsets, "offsets")
     ends = d.get("end_sites")
     if not isinstance(ends, list) or not all(isinstance(e, list) and len(e) == 3 for e in ends):
         raise _bad("end_sites", "a list of [joint, offset, name] expected")
-    for j, off, name in ends:
+    for j, _, name in ends:
         if not _is_int(j) or not 0 <= j < n or not isinstance(name, str):
             raise _bad("end_sites", "end site on an unknown joint")
-        _vector(off, "end_sites")
+    _vectors([e[1] for e in ends], "end_sites")
     if "axis" in d:
         axis = d["axis"]
-        if not isinstance(axis, list) or len(axis) != 9 * n or not all(_is_real(x) for x in axis):
+        if not isinstance(axis, list) or len(axis) != 9 * n or not _reals(axis):
             raise _bad("axis", f"{9 * n} finite numbers expected")
         a = np.asarray(axis, dtype=np.float64).reshape(n, 3, 3)
         if not np.allclose(a @ np.swapaxes(a, 1, 2), np.eye(3), atol=1e-6) or not np.all(np.linalg.det(a) > 0):
@@ -152,3 +158,17 @@ def _check_skeleton(d: dict[str, Any]) -> int:
     if d.get("decimals") is not None:
         _int_list(d, "decimals", n_channels, 0, MAX_DECIMALS)
     return n
+
+
+@functools.lru_cache(maxsize=1024)
+def _joint_channels(j: int, chs: str, order: str) -> int:
+    """The number of channels of joint ``j`` (``chs``: its channel codes, ``order``: its rotation order);
+    FormatError unless they are known, distinct and the order names exactly its rotation axes (the same few
+    joint layouts recur in every file: the answers are kept)."""
+    codes = [chs[i : i + 4] for i in range(0, len(chs), 4)]
+    if len(chs) % 4 or any(c not in CHANNEL_CODES for c in codes) or len(set(codes)) != len(codes):
+        raise _bad("channels", f"joint {j}: unknown or repeated channels {chs[:40]!r}")
+    rot = sorted(c[0] for c in codes if c.endswith("rot"))
+    if sorted(order) != rot or len(set(order)) != len(order):
+        raise _bad("orders", f"joint {j}: rotation order {order[:8]!r} for rotation channels {''.join(rot)!r}")
+    return len(codes)

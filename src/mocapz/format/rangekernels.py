@@ -135,7 +135,7 @@ def begin(words: np.ndarray) -> np.ndarray:
 
 
 TABLE = 15  # symbols -TABLE .. TABLE: looked up in a per-block table of their cumulatives (the rest: computed)
-TABLE_ROWS = 64  # rows of a scale block decoded in one call from which its tables are made
+TABLE_ROWS = 16  # rows of a scale block decoded in one call from which its tables are made
 
 
 @njit(cache=True)

@@ -127,13 +127,19 @@ def _unescape(sym: np.ndarray, esc: bytes, marks: np.ndarray, complete: bool) ->
 def _zstd_rows(data: bytes, rows: int, cols: int, spans: list[tuple[int, int]]) -> list[np.ndarray]:
     """Rows of a CODER_ZSTD :func:`~mocapz.format.entropy.encode_int_matrix` stream of a ``(rows, cols)``
     matrix, per span ``(first, stop)``."""
+    return entropy.unpack_zigzag_rows(_zstd_body(data, rows, cols), rows, cols, spans)
+
+
+def _zstd_body(data: bytes, rows: int, cols: int) -> bytes:
+    """The byte-plane stream of a CODER_ZSTD :func:`~mocapz.format.entropy.encode_int_matrix` stream of a
+    ``(rows, cols)`` matrix, its shape checked."""
     if len(data) < 3 or data[0] != entropy.CODER_ZSTD:
         raise FormatError(None, "corrupted seekable stream (zstd layout)")
     r, pos = read_uvarint(data, 1)
     c, pos = read_uvarint(data, pos)
     if (r, c) != (rows, cols):
         raise FormatError(None, f"corrupted integer stream (shape {(r, c)} where {(rows, cols)} is expected)")
-    return entropy.unpack_zigzag_rows(data[pos:], rows, cols, spans)
+    return data[pos:]
 
 
 def _guard(call):  # noqa: ANN001, ANN202
@@ -208,9 +214,7 @@ def read_running(data: bytes, shape: tuple[int, int], chunk: int, a: int = 0, b:
     if not data or data[0] not in (RUN_WHOLE, RUN_CHUNKS):
         raise FormatError(None, "corrupted seekable stream (running layout)")
     if data[0] == RUN_WHOLE:
-        if a == b:
-            return np.zeros((0, cols), dtype=np.int64)
-        return np.cumsum(_zstd_rows(data[1:], rows, cols, [(0, b)])[0], axis=0)[a:]
+        return entropy.unpack_zigzag_running(_zstd_body(data[1:], rows, cols), rows, cols, a, b)
     size, pos = read_uvarint(data, 1)
     nchunks = len(range(0, rows, chunk))
     firsts = np.cumsum(decode_int_matrix(_take(memoryview(data), pos, size), (nchunks, cols)), axis=0)

@@ -59,9 +59,9 @@ class Skeleton:
         n = len(self.names)
         if self.axis is None:
             self.axis = np.broadcast_to(np.eye(3), (n, 3, 3)).copy()
-        for j, p in enumerate(self.parents):
-            if p >= j:
-                raise ValueError(f"joint {self.names[j]!r}: parent must come before child")
+        late = np.flatnonzero(self.parents >= np.arange(self.parents.size))
+        if late.size:
+            raise ValueError(f"joint {self.names[late[0]]!r}: parent must come before child")
 
     # ----------------------------------------------------------------- layout
     @property
