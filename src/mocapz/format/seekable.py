@@ -69,9 +69,11 @@ def decode_segments(data: bytes, shape: tuple[int, int], starts: list[int],
     kept; rows from ``until`` on are not needed (the segments holding them end there)."""
     rows, cols = shape
     _check_starts(starts, rows)
-    ends = [*starts[1:], rows]
-    if until is not None:
-        ends = [max(a + 1, min(b, until)) for a, b in zip(starts, ends, strict=True)]
+    nexts = [*starts[1:], rows]
+
+    def end(i: int) -> int:  # where segment ``i``'s rows needed end
+        return nexts[i] if until is None else max(starts[i] + 1, min(nexts[i], until))
+
     wanted = list(range(len(starts))) if wanted is None else sorted(set(wanted))
     if wanted and not 0 <= wanted[0] <= wanted[-1] < len(starts):
         raise ValueError(f"segments {wanted} of {len(starts)}")
@@ -79,7 +81,7 @@ def decode_segments(data: bytes, shape: tuple[int, int], starts: list[int],
     if not buf or buf[0] not in (SEG_ZSTD, SEG_RANGE):
         raise FormatError(None, "corrupted seekable stream (layout)")
     if buf[0] == SEG_ZSTD:  # decompressed whole, only the wanted segments' rows unpacked
-        return dict(zip(wanted, _zstd_rows(bytes(buf[1:]), rows, cols, [(starts[i], ends[i]) for i in wanted]),
+        return dict(zip(wanted, _zstd_rows(bytes(buf[1:]), rows, cols, [(starts[i], end(i)) for i in wanted]),
                         strict=True)) if wanted else {}
     if not entropy.HAVE_CONSTRICTION:
         raise FormatError(None, "this stream was written by the range coder; install 'constriction'")
@@ -94,21 +96,24 @@ def decode_segments(data: bytes, shape: tuple[int, int], starts: list[int],
     scale = entropy._block_scale(_guard(lambda: entropy._decode_scale_codes(dec, pick, nb, cols)), 4,
                                  entropy.QUARTER_BIAS)
     out, keep, last = {}, set(wanted), wanted[-1] if wanted else -1
-    for i, (a, b) in enumerate(zip(starts, [*starts[1:], rows], strict=True)):
-        if i > last:
-            break
+    for i in range(last + 1):  # the segments before a wanted one: their lengths read, their bytes skipped
         esc_size, pos = read_uvarint(buf, pos)
-        esc = _take(buf, pos, esc_size)
+        esc_at = pos
         pos += esc_size
+        if pos > len(buf):
+            raise FormatError(None, "truncated seekable stream")
         body_size, pos = read_uvarint(buf, pos)
-        body = _take(buf, pos, body_size)
+        body_at = pos
         pos += body_size
+        if pos > len(buf):
+            raise FormatError(None, "truncated seekable stream")
         if i in keep:
             if body_size % 4:
                 raise FormatError(None, "corrupted seekable stream (body)")
-            dec, n = entropy.range_decoder(body, rows * cols), ends[i] - a
+            a, n = starts[i], end(i) - starts[i]
+            dec = entropy.range_decoder(bytes(buf[body_at:pos]), rows * cols)
             sym, marks = _guard(lambda dec=dec, a=a, n=n: entropy._decode_values(dec, scale, n, cols, a))
-            out[i] = _unescape(sym, esc, marks, complete=n == b - a)
+            out[i] = _unescape(sym, bytes(buf[esc_at:esc_at + esc_size]), marks, complete=n == nexts[i] - a)
     return out
 
 

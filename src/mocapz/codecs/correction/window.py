@@ -210,12 +210,14 @@ def _details(parts: list[bytes], frames: int, depth: int, split: int, cols: int,
     for s, rows_wanted in spans.items():  # each stream decoded once, its segments the levels' rows lie in
         starts = streams[s]
         rows = counts[s] if split == STREAM_A_LEVEL else int(offsets[-1])
-        ends = [*starts[1:], rows]
-        idx = sorted({j for _, r0, r1 in rows_wanted for j, (u, v) in enumerate(zip(starts, ends, strict=True))
-                      if u < r1 and v > r0})
+        seg_first = np.asarray(starts)
+        seg_stop = np.append(seg_first[1:], rows)
+        # the segments each level's rows lie in (those starting before its stop and ending after its first row)
+        per = {level: np.flatnonzero((seg_first < r1) & (seg_stop > r0)).tolist() for level, r0, r1 in rows_wanted}
+        idx = sorted({j for js in per.values() for j in js})
         segs = decode_segments(parts[s], (rows, cols), starts, idx, max(r1 for _, _, r1 in rows_wanted))
         for level, r0, r1 in rows_wanted:
-            mine = [j for j in idx if starts[j] < r1 and ends[j] > r0]
+            mine = per[level]
             block = np.concatenate([segs[j] for j in mine])
             first = starts[mine[0]]
             t0, t1, _ = out[level]

@@ -37,6 +37,23 @@ def find_effectors(skeleton: Skeleton, names: list[str] | None = None) -> np.nda
         if missing:
             raise OptionError(f"unknown effector joint(s): {', '.join(missing)} (known: {', '.join(points)})")
         return np.array([points.index(n) for n in names], dtype=np.int64)
+    # the automatic choice depends on the tree, the names and the rest offsets only: kept per skeleton (every
+    # decode of a file asks for it again)
+    key = (tuple(skeleton.names), skeleton.parents.tobytes(), np.asarray(skeleton.offsets, np.float64).tobytes(),
+           tuple((int(j), np.asarray(off, np.float64).tobytes(), n) for j, off, n in skeleton.end_sites))
+    found = _AUTOMATIC.get(key)
+    if found is None:
+        if len(_AUTOMATIC) >= 64:
+            _AUTOMATIC.clear()
+        found = _AUTOMATIC[key] = _automatic(skeleton)
+    return found.copy()
+
+
+_AUTOMATIC: dict[tuple, np.ndarray] = {}  # skeleton key -> its automatic effectors
+
+
+def _automatic(skeleton: Skeleton) -> np.ndarray:
+    """:func:`find_effectors` without names (the extremities)."""
     rest = rest_positions(skeleton)
     pp = skeleton.point_parents
     has_child = np.zeros(skeleton.n_points, dtype=bool)
