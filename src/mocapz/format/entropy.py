@@ -91,14 +91,9 @@ def _scale_codes(values: np.ndarray, steps: int, bias: int, offsets: range, top:
         if not blk.size:
             q[b] = np.clip(guess, 0, top)
             continue
-        best, best_cost = guess, np.full(cols, np.inf)
-        hist = _histogram(blk)
-        for d in offsets:
-            code = np.clip(guess + d, 0, top)
-            cost = _laplace_bits(*hist, 2.0 ** ((code - float(bias)) / steps))
-            better = cost < best_cost
-            best, best_cost = np.where(better, code, best), np.where(better, cost, best_cost)
-        q[b] = best
+        codes = np.clip(guess[None, :] + np.asarray(offsets, dtype=np.float64)[:, None], 0, top)  # (offsets, cols)
+        cost = _candidate_bits(_histogram(blk), 2.0 ** ((codes - float(bias)) / steps))
+        q[b] = codes[np.argmin(cost, axis=0), np.arange(cols)]  # the first of the cheapest, in offsets' order
     return q
 
 
@@ -115,16 +110,26 @@ def _histogram(a: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
     return np.arange(top, dtype=np.float64)[:, None], counts
 
 
+def _candidate_bits(hist: tuple[np.ndarray, np.ndarray | None], scales: np.ndarray) -> np.ndarray:
+    """:func:`_laplace_bits` of a block (:func:`_histogram`) under each row of ``scales`` ``(candidates, columns)``:
+    all at once from a histogram, one candidate at a time from the values themselves (a block of large values:
+    every candidate's array of them at once would be many times the block)."""
+    if hist[1] is not None:
+        return _laplace_bits(*hist, scales)
+    return np.stack([_laplace_bits(*hist, s) for s in scales])
+
+
 def _laplace_bits(a: np.ndarray, counts: np.ndarray | None, scale: np.ndarray) -> np.ndarray:
     """Bits ``(columns,)`` the absolute values ``a`` ``(rows, columns)`` cost under a quantised Laplace model of
     scale ``scale`` ``(columns,)`` (each probability at least 2**-24, as the coder's); with ``counts``, ``a``
-    holds distinct values ``(k, 1)`` occurring ``counts`` ``(k, columns)`` times (:func:`_histogram`)."""
-    s = scale[None, :]
+    holds distinct values ``(k, 1)`` occurring ``counts`` ``(k, columns)`` times (:func:`_histogram`). Scales
+    ``(candidates, columns)`` give the bits ``(candidates, columns)`` of each candidate (the same numbers)."""
+    s = scale[..., None, :]
     zero = -np.expm1(-0.5 / s)
     other = 0.5 * np.exp(-(np.maximum(a, 0.5) - 0.5) / s) * -np.expm1(-1.0 / s)
     p = np.where(a == 0, zero, other)
     bits = -np.log2(np.maximum(p, 2.0**-24))
-    return bits.sum(axis=0) if counts is None else (bits * counts).sum(axis=0)
+    return bits.sum(axis=-2) if counts is None else (bits * counts).sum(axis=-2)
 
 
 def _block_scale(q: np.ndarray, steps: int = SCALE_STEPS, bias: int = 64) -> np.ndarray:

@@ -49,15 +49,10 @@ def _codes(values: np.ndarray, gid: np.ndarray, n: int) -> np.ndarray:
         blk = np.abs(values[b * E.BLOCK:(b + 1) * E.BLOCK]).astype(np.float64)
         mean = np.bincount(gid, weights=blk.mean(axis=0), minlength=n) / np.maximum(counts, 1)
         guess = np.round(np.log2(np.maximum(mean, 2.0 ** -6)) * 2) + HALF_BIAS
-        hist = E._histogram(blk)
-        best, best_cost = guess, np.full(n, np.inf)
-        for d in OFFSETS:
-            code = np.clip(guess + d, 0, HALF_TOP)
-            per_col = E._laplace_bits(*hist, 2.0 ** ((code[gid] - float(HALF_BIAS)) / 2))
-            cost = np.bincount(gid, weights=per_col, minlength=n)
-            better = cost < best_cost
-            best, best_cost = np.where(better, code, best), np.where(better, cost, best_cost)
-        q[b] = best
+        codes = np.clip(guess[None, :] + np.asarray(OFFSETS, dtype=np.float64)[:, None], 0, HALF_TOP)  # (offsets, n)
+        per_col = E._candidate_bits(E._histogram(blk), 2.0 ** ((codes[:, gid] - float(HALF_BIAS)) / 2))
+        cost = np.stack([np.bincount(gid, weights=c, minlength=n) for c in per_col])
+        q[b] = codes[np.argmin(cost, axis=0), np.arange(n)]  # the first of the cheapest, in OFFSETS' order
     return q
 
 
