@@ -177,7 +177,7 @@ def unpack_zigzag_rows(buf: bytes, rows: int, cols: int, spans: list[tuple[int, 
     that holds them, and widened once at the end (a few bytes per value moved instead of three passes of
     eight)."""
     planes = _unpack_planes(buf, rows * cols, MAX_COUNT)
-    return [_columns(buf, planes, rows, cols, a, b).T.astype(np.int64, order="C") for a, b in spans]
+    return [_columns(planes, rows, cols, a, b).T.astype(np.int64, order="C") for a, b in spans]
 
 
 def unpack_zigzag_running(buf: bytes, rows: int, cols: int, a: int, b: int) -> np.ndarray:
@@ -187,19 +187,17 @@ def unpack_zigzag_running(buf: bytes, rows: int, cols: int, a: int, b: int) -> n
     row-major matrix)."""
     if a >= b:
         return np.zeros((0, cols), dtype=np.int64)
-    v = _columns(buf, _unpack_planes(buf, rows * cols, MAX_COUNT), rows, cols, 0, b).astype(np.int64)
+    v = _columns(_unpack_planes(buf, rows * cols, MAX_COUNT), rows, cols, 0, b).astype(np.int64)
     np.cumsum(v, axis=1, out=v)
     return np.ascontiguousarray(v[:, a:].T)
 
 
-def _columns(buf: bytes, planes: np.ndarray, rows: int, cols: int, a: int, b: int) -> np.ndarray:
-    """Rows ``[a, b)`` of the matrix of unpacked ``planes`` (of ``buf``), column by column: ``(cols, b - a)``
-    signed integers, in the narrowest type that holds them."""
+def _columns(planes: np.ndarray, rows: int, cols: int, a: int, b: int) -> np.ndarray:
+    """Rows ``[a, b)`` of the matrix of unpacked ``planes``, column by column: ``(cols, b - a)`` signed integers,
+    in the narrowest type that holds them."""
     nbytes = planes.shape[0]
-    if nbytes > 4:
-        return unzigzag(unpack_uint64(buf, rows * cols)).reshape(cols, rows)[:, a:b]
     kind, signed = (np.uint8, np.int8) if nbytes == 1 else (np.uint16, np.int16) if nbytes == 2 \
-        else (np.uint32, np.int32)
+        else (np.uint32, np.int32) if nbytes <= 4 else (np.uint64, np.int64)
     part = planes.reshape(nbytes, cols, rows)[:, :, a:b]
     u = part[0].astype(kind)
     for k in range(1, nbytes):
