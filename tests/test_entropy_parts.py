@@ -95,8 +95,9 @@ def _stream(m: mocapz.Motion) -> bytes:
 
 def test_a_real_streams_blocks_take_it_and_cost_less(monkeypatch: pytest.MonkeyPatch) -> None:
     """02_05's first 640 frames streamed at 1 cm (blocks of 128 frames, six lifting parts each): one range
-    stream a block instead of one a part: -8.5 % of the whole stream (measured: 4,272 -> 3,910 B; every block
-    takes it)."""
+    stream a block instead of one a part: -5.5 % of the whole stream (measured: 4,137 -> 3,909 B; every block
+    takes it; -8.5 %, 4,272 -> 3,910 B, before a block's feet were held on the stream's sums so far, which
+    changed the levels the parts' layout is chosen on)."""
     path = DATA / "cmu/bvh/02_05.bvh"
     if not path.exists():
         pytest.skip(f"{path} not found")
@@ -108,4 +109,4 @@ def test_a_real_streams_blocks_take_it_and_cost_less(monkeypatch: pytest.MonkeyP
     assert mocapz.evaluate(m, back).max_err_cm <= 1.0 + 1e-9
     monkeypatch.setattr(lifting, "HAVE_CONSTRICTION", False)  # the layouts before it
     apart = _stream(m)
-    assert len(joint) <= 0.94 * len(apart), (len(joint), len(apart))
+    assert len(joint) <= 0.96 * len(apart), (len(joint), len(apart))

@@ -56,15 +56,20 @@ def test_lossy_stream_meets_its_target_near_the_offline_size() -> None:
     rep = mocapz.evaluate(m, mocapz.decompress(data))
     assert rep.max_err_cm <= 1.0 + 1e-9
     assert rep.jitter_pct <= 5.0
+    # the feet held on the whole stream (METRICS.md's mean over its planted frames): each block is verified on
+    # the stream's sums so far, not on its own frames alone
+    assert rep.foot_skate * m.unit_cm <= 0.3
+    assert rep.foot_skate_window * m.unit_cm <= 0.3
     # a fixed cost per block of about 1 s (its levels and scale bytes; the first knot row only every 10 s, the
     # blocks between continuing the block before them; the codes written once): 153 B per second measured,
     # +17 % of the 9.1 kB offline file (220 B before a joint's channels shared their scales, 291 B before
     # blocks continued); 129 B since a block repeating the names of the block before writes only their lengths,
     # 93 B (+10.2 %) since a block's lifting parts go into one range stream, 89 B (+9.7 %) since a repeat record's
-    # kind says whether the block continues
+    # kind says whether the block continues; 45 B (+4.9 %) since the feet's speed and the jitter are held on the
+    # stream's sums (a block held its feet on its own planted frames, and smoothing earned no allowance)
     offline = mocapz.compress(m, "quant", max_error="1cm")
-    assert len(data) - len(offline) <= 100 * math.ceil(m.n_frames / m.frame_rate)
-    assert len(data) <= 1.10 * len(offline)  # issue 13: within 10 % of the offline file
+    assert len(data) - len(offline) <= 60 * math.ceil(m.n_frames / m.frame_rate)
+    assert len(data) <= 1.07 * len(offline)  # issue 13: within 10 % of the offline file
 
 
 def test_decoder_yields_blocks_as_bytes_arrive() -> None:

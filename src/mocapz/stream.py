@@ -91,7 +91,8 @@ class StreamEncoder:
         self.past_ok = np.ones(empty.positions.shape[:2], bool)
         self.frames = 0
         self.energy = 0.0  # the original's acceleration energy so far
-        self.spent = 0.0  # acceleration energy the corrections added so far
+        self.spent = 0.0  # acceleration energy the corrections added so far (less what they smoothed)
+        self.skated: dict = {}  # the feet's added speed so far (:func:`mocapz.codecs.correction.feet.speed_sums`)
         self.crc = 0
         self.started = False
         self.closed = False
@@ -151,7 +152,8 @@ class StreamEncoder:
         lo = max(a - 2, 0)
         self.energy += float(acceleration_energy(pos[lo:b], ok[lo:b])[0].sum())
         # the clip so far, as the block's correction sees it: energy up to the block's end, the allowance spent
-        cache = {"positions": (pos, ok), "energy": (self.energy, b), "jitter_spent": self.spent, "stream": self.kept}
+        cache = {"positions": (pos, ok), "energy": (self.energy, b), "jitter_spent": self.spent,
+                 "skate_spent": self.skated, "stream": self.kept}
         if self.blocks % self.key:
             cache["before"] = self.before
         else:
@@ -172,6 +174,7 @@ class StreamEncoder:
             self.before = None
         self.blocks += 1
         self.spent = float(cache.get("jitter_spent", self.spent))
+        self.skated = cache.get("skate_spent", self.skated)
         self.past = np.concatenate([past, rows])[-self.history:]
         self.past_pos, self.past_ok = pos[-self.history:], ok[-self.history:]
         self.frames += len(rows)

@@ -86,10 +86,19 @@ def energy_reference(ctx: BlockOf | None, own: float, fraction: float) -> float:
     return max(left, 1e-9 * total)
 
 
-def spend(ctx: BlockOf | None, added: float) -> None:
-    """Record the acceleration energy the block's chosen correction added (blocks are encoded in order)."""
+def spend(ctx: BlockOf | None, added: float, skated: dict | None = None) -> None:
+    """Record the acceleration energy the block's chosen correction added (less where it smoothed: the clip's
+    allowance is on the sum, as METRICS.md's jitter on the whole file) and the feet's added speed so far
+    (``skated``, :func:`.feet.speed_sums`; blocks are encoded in order)."""
     if ctx is not None:
-        ctx.cache["jitter_spent"] = ctx.cache.get("jitter_spent", 0.0) + max(added, 0.0)
+        ctx.cache["jitter_spent"] = ctx.cache.get("jitter_spent", 0.0) + added
+        if skated is not None:
+            ctx.cache["skate_spent"] = skated
+
+
+def carried_skate(ctx: BlockOf | None) -> dict | None:
+    """The feet's added speed summed over the blocks before this one (:func:`.feet.speed_sums`), or None."""
+    return None if ctx is None else ctx.cache.get("skate_spent", {})
 
 
 def continued(ctx: BlockOf | None) -> np.ndarray | None:

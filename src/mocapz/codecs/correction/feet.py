@@ -8,6 +8,8 @@ closed loop (:mod:`.chain`) aims at the original below them, until it is small.
 
 from __future__ import annotations
 
+from collections.abc import Iterator
+
 import numpy as np
 
 from mocapz.metrics.contacts import Contacts
@@ -39,16 +41,51 @@ def foot_groups(motion: AnyMotion, contacts: Contacts | None, positions: np.ndar
     return out
 
 
+Carried = dict[tuple[int, int], tuple[float, int]]  # (window steps, foot point) -> (summed added speed, windows)
+
+
 def added_speed(contacts: Contacts | None, original: np.ndarray, pos: np.ndarray, fps: float,
-                limit: float) -> tuple[float, np.ndarray]:
+                limit: float, carried: Carried | None = None) -> tuple[float, np.ndarray]:
     """The largest mean horizontal speed decoded positions ``pos`` add to a planted foot of the ``original``
     (both ``(frames, points, 3)``, file units), over each foot's planted steps, frame to frame and over 0.1 s
     windows (file units per second), and ``(frames, points)`` True on the foot samples whose added speed,
-    largest first, makes up what is over ``limit`` (to bring it to half the limit)."""
+    largest first, makes up what is over ``limit`` (to bring it to half the limit). ``carried``: the blocks
+    before this one in a stream (:func:`speed_sums`): the mean is then the stream's so far, as METRICS.md takes
+    it over the whole file, and only this block's samples are tightened."""
     out = np.zeros(pos.shape[:2], dtype=bool)
-    if contacts is None or not contacts.steps.any() or pos.shape[0] < 3:
-        return 0.0, out
     worst = 0.0
+    for w, f, idx, excess in _planted(contacts, original, pos, fps):
+        s0, n0 = (0.0, 0) if carried is None else carried.get((w, int(f)), (0.0, 0))
+        count = n0 + idx.size
+        added = float(excess[idx].mean()) if carried is None else (s0 + float(excess[idx].sum())) / count
+        worst = max(worst, added)
+        if added <= limit:
+            continue
+        order = idx[np.argsort(-excess[idx])]
+        need = (added - 0.5 * limit) * count
+        n = int(np.searchsorted(np.cumsum(np.maximum(excess[order], 0.0)), need)) + 1
+        for t in order[:n]:
+            out[t : t + w + 1, f] = True
+    return worst, out
+
+
+def speed_sums(contacts: Contacts | None, original: np.ndarray, pos: np.ndarray, fps: float,
+               carried: Carried | None = None) -> Carried:
+    """``carried`` (empty: None) plus the added speed of ``pos`` summed over each foot's planted windows and
+    their number, per window length (what :func:`added_speed` takes for the blocks after this one)."""
+    out = dict(carried or {})
+    for w, f, idx, excess in _planted(contacts, original, pos, fps):
+        s0, n0 = out.get((w, int(f)), (0.0, 0))
+        out[(w, int(f))] = (s0 + float(excess[idx].sum()), n0 + int(idx.size))
+    return out
+
+
+def _planted(contacts: Contacts | None, original: np.ndarray, pos: np.ndarray, fps: float
+             ) -> Iterator[tuple[int, int, np.ndarray, np.ndarray]]:
+    """Per window length ``w`` (1 and 0.1 s) and foot point ``f`` with planted windows: ``(w, f, idx, excess)``,
+    the planted windows' first frames and the added speed ``(frames - w,)`` of every window."""
+    if contacts is None or not contacts.steps.any() or pos.shape[0] < 3:
+        return
     for w in sorted({1, window_steps(fps)}):
         if pos.shape[0] <= w:
             continue
@@ -58,14 +95,4 @@ def added_speed(contacts: Contacts | None, original: np.ndarray, pos: np.ndarray
                 continue
             excess = (horizontal_speeds(np.nan_to_num(pos[:, f]), contacts.horizontal, w, fps)
                       - horizontal_speeds(original[:, f], contacts.horizontal, w, fps))
-            idx = np.flatnonzero(full)
-            added = float(excess[idx].mean())
-            worst = max(worst, added)
-            if added <= limit:
-                continue
-            order = idx[np.argsort(-excess[idx])]
-            need = (added - 0.5 * limit) * idx.size
-            n = int(np.searchsorted(np.cumsum(np.maximum(excess[order], 0.0)), need)) + 1
-            for t in order[:n]:
-                out[t : t + w + 1, f] = True
-    return worst, out
+            yield w, f, np.flatnonzero(full), excess

@@ -71,6 +71,7 @@ class Correction:
     bound: float
     jitter: float = 0.0
     added: float = 0.0  # acceleration energy added (file units squared, summed over frames and points)
+    skated: feet.Carried | None = None  # a block's: the feet's added speed so far (:func:`.feet.speed_sums`)
     depth: int = 0  # lifting levels (knots 2 ** depth frames apart)
     settled: bool = True  # the verification rounds ended before MAX_ROUNDS (False: they ran out, levels high)
 
@@ -159,7 +160,13 @@ class Clip:
         """The largest speed decoded positions ``(frames, points, 3)`` add to a planted foot and the samples to
         tighten (:func:`.feet.added_speed`)."""
         return feet.added_speed(self.contacts, self.positions, pos, float(self.motion.frame_rate),
-                                self.skate_limit())
+                                self.skate_limit(), context.carried_skate(self.whole))
+
+    def skate_sums(self, pos: np.ndarray) -> feet.Carried | None:
+        """A block's: the feet's added speed of decoded positions ``(frames, points, 3)`` summed with the blocks'
+        before (:func:`.feet.speed_sums`); None for a clip of its own."""
+        return None if self.whole is None else feet.speed_sums(
+            self.contacts, self.positions, pos, float(self.motion.frame_rate), context.carried_skate(self.whole))
 
     def point_bounds(self, e: float) -> np.ndarray:
         """``(frames, points)`` position bounds: ``e`` on every point (planted feet are held by their speed,
@@ -288,6 +295,7 @@ def fit(clip: Clip, base: np.ndarray, e: float, relax_by: float = bounds.RELAX, 
     frames = x.shape[0]
     del x, y, cap  # what is left to do needs the positions' figures and the integers only
     errors, added = clip.metric.of_positions(pos), clip.added_energy(pos)
+    skated = clip.skate_sums(pos)
     del pos  # the integers are packed without it (the entropy coders' work space comes on top)
     release_free_memory()  # the rounds' freed arrays, not beside zstd's work space (mmap-ed, level 19)
     seek = window.seekable(frames)  # a long clip: its streams laid out for random access (c.head format 3)
@@ -299,7 +307,7 @@ def fit(clip: Clip, base: np.ndarray, e: float, relax_by: float = bounds.RELAX, 
         else lifting.pack(q, frames, depth, clip.prefix_of(base), lay.group),
     }
     size = sum(len(v) + 8 for v in sections.values())
-    return Correction(sections, size, errors, e, jit, added, depth, settled)
+    return Correction(sections, size, errors, e, jit, added, skated, depth, settled)
 
 
 Coding = tuple[np.ndarray, np.ndarray, np.ndarray]  # integers, decoded residual, decoded positions
