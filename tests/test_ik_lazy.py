@@ -58,3 +58,35 @@ def test_the_path_is_a_function_of_the_length_only() -> None:
     assert ikjit.kernels(ikjit.LAZY_FRAMES - 1) is None
     assert ikjit.kernels(ikjit.LAZY_FRAMES) is not None
     assert ikjit.LAZY_FRAMES == compiled.LAZY_FRAMES  # a clip under both loads no numba at all
+
+
+def test_a_streams_blocks_take_the_compiled_ik_whatever_their_length(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A pga stream's blocks (about 1 s, under LAZY_FRAMES) take the compiled IK in the encoder and in every
+    decoder, which all know the block is a stream's (ikjit.stream_block): the same values from the stream
+    decoder and from mocapz.decompress, within the target; the blocks' IK does run compiled."""
+    pytest.importorskip("numba")
+    import numpy as np
+
+    import mocapz
+    from mocapz.codecs.pga import iksolve
+
+    assert ikjit.kernels(ikjit.LAZY_FRAMES - 1) is None
+    with ikjit.stream_block():
+        assert ikjit.kernels(ikjit.LAZY_FRAMES - 1) is not None
+    assert ikjit.kernels(ikjit.LAZY_FRAMES - 1) is None  # only inside
+    m = mocapz.load(data_path("cmu/bvh/02_05.bvh")).slice(0, 400)
+    enc = mocapz.StreamEncoder(m, codec="pga", max_error="1cm")
+    data = enc.write(m.values) + enc.close()
+    paths = []
+    real = iksolve.solve_fast
+
+    def spy(*args, **kwargs):  # which path each block's IK takes
+        paths.append(ikjit.kernels(kwargs.get("frames")) is not None)
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr("mocapz.codecs.pga.decode.solve_fast", spy)
+    back = mocapz.decompress(data)
+    assert paths and all(paths), paths
+    blocks = mocapz.StreamDecoder().feed(data)
+    assert np.array_equal(np.concatenate([b.values for b in blocks]), back.values)
+    assert mocapz.evaluate(m, back).max_err_cm <= 1.0 + 1e-9

@@ -120,7 +120,23 @@ def euler_tables(skeleton: Skeleton, joints: np.ndarray) -> tuple[np.ndarray, ..
     """What the compiled :func:`~mocapz.codecs.pga.ikjit` ``euler_channels`` kernel needs to write the Euler
     channels of the root and of the model's ``joints``: per rotating joint its source (-1: root, else model
     slot), axes ``ijk``, parity, output columns, axis frame; None when a joint has a repeated axis (proper
-    Euler angles: the NumPy path) or a rotating joint is neither the root nor a model joint."""
+    Euler angles: the NumPy path) or a rotating joint is neither the root nor a model joint. Kept per channel
+    layout and joints (every decode and seek of a clip asks again; the kernel only reads them)."""
+    axis = skeleton.axis
+    assert axis is not None
+    key = (tuple(skeleton.channels), tuple(skeleton.rotation_order), np.asarray(axis, np.float64).tobytes(),
+           np.asarray(joints, np.int64).tobytes())
+    if key not in _TABLES:
+        if len(_TABLES) >= 64:
+            _TABLES.clear()
+        _TABLES[key] = _euler_tables(skeleton, joints)
+    return _TABLES[key]
+
+
+_TABLES: dict[tuple, tuple[np.ndarray, ...] | None] = {}  # channel layout and joints -> euler_tables
+
+
+def _euler_tables(skeleton: Skeleton, joints: np.ndarray) -> tuple[np.ndarray, ...] | None:
     axis = skeleton.axis
     assert axis is not None
     slot = {int(j): i for i, j in enumerate(joints)}

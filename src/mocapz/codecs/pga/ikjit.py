@@ -16,6 +16,9 @@ rate control and correction layer decode with it, so the file's bytes could depe
 
 from __future__ import annotations
 
+from collections.abc import Iterator
+from contextlib import contextmanager
+from contextvars import ContextVar
 from typing import Any
 
 import numpy as np
@@ -25,14 +28,27 @@ from mocapz._jit import COMPILE_ROOM, enabled, room_to_compile, set_enabled
 _KERNELS: dict[str, Any] | None = None
 LAZY_FRAMES = 500  # clips of fewer frames: the NumPy path, always (the correction layer's threshold too,
 # correction/compiled.py: a clip under it loads no numba at all)
+_STREAM: ContextVar[bool] = ContextVar("pga_stream_block", default=False)
+
+
+@contextmanager
+def stream_block() -> Iterator[None]:
+    """Code or decode a stream's block inside: the compiled kernels whatever its length (a stream's blocks are
+    about a second each, but a stream is long: loading numba pays, and every block then takes the same path in
+    the encoder and in every decoder, which know alike that it is a stream's block)."""
+    token = _STREAM.set(True)
+    try:
+        yield
+    finally:
+        _STREAM.reset(token)
 
 
 def kernels(frames: int | None = None) -> dict[str, Any] | None:
     """The compiled kernels by name for a clip of ``frames`` frames, or None: without numba, when disabled, or
-    when ``frames`` is under :data:`LAZY_FRAMES` (None: whatever the length; tests). Never a function of
-    whether numba is loaded already (see the module's docstring)."""
+    when ``frames`` is under :data:`LAZY_FRAMES` (None: whatever the length; tests), but in a stream's block
+    (:func:`stream_block`). Never a function of whether numba is loaded already (see the module's docstring)."""
     global _KERNELS
-    if not enabled() or (frames is not None and frames < LAZY_FRAMES):
+    if not enabled() or (frames is not None and frames < LAZY_FRAMES and not _STREAM.get()):
         return None
     if _KERNELS is None:
         try:
@@ -73,4 +89,4 @@ def _warm(k: dict[str, Any]) -> None:
                         np.zeros(1, np.bool_), 1.0, np.zeros((1, 3)))
 
 
-__all__ = ["COMPILE_ROOM", "LAZY_FRAMES", "enabled", "kernels", "room_to_compile", "set_enabled"]
+__all__ = ["COMPILE_ROOM", "LAZY_FRAMES", "enabled", "kernels", "room_to_compile", "set_enabled", "stream_block"]

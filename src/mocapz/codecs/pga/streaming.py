@@ -7,7 +7,9 @@ keeps as context (the last seconds and the block: :data:`mocapz.stream.HISTORY_S
 until the next key codes its trajectories and coordinates against it, as a library's clips do
 (:mod:`.library`): a block's sections are the model's ``m`` and ``p`` (the same bytes in every block of the
 interval, so the stream writes them once, :func:`mocapz.format.blocks.thin`) and its own ``params``, ``data``
-without the model, ``outl`` and the correction's ``c.*``. The correction meets the target on every block.
+without the model, ``outl`` and the correction's ``c.*``. The correction meets the target on every block. A
+block's IK takes the compiled kernels when numba is installed, whatever the block's length
+(:func:`.ikjit.stream_block`), in the encoder and in every decoder alike.
 """
 
 from __future__ import annotations
@@ -15,6 +17,7 @@ from __future__ import annotations
 from typing import Any
 
 from mocapz.codecs.correction.context import block_of
+from mocapz.codecs.pga import ikjit
 from mocapz.codecs.pga.library import _coder, _prepare, decode_member, fit_shared
 from mocapz.model.header import ClipHeader
 from mocapz.model.motion import AnyMotion
@@ -35,11 +38,12 @@ def encode_block(motion: AnyMotion, options: dict[str, Any]) -> Sections:
     ctx = block_of(motion)
     assert ctx is not None
     kept = ctx.cache["stream"]
-    if ctx.cache.get("key") or KEPT not in kept:
-        model = fit_shared([_prepare(ctx.clip, options)], options)
-        kept[KEPT] = (model, model.sections())
-    model, shared = kept[KEPT]
-    own = _coder(_prepare(motion, options), model, shared)[0](motion, **options)  # type: ignore[arg-type]
+    with ikjit.stream_block():
+        if ctx.cache.get("key") or KEPT not in kept:
+            model = fit_shared([_prepare(ctx.clip, options)], options)
+            kept[KEPT] = (model, model.sections())
+        model, shared = kept[KEPT]
+        own = _coder(_prepare(motion, options), model, shared)[0](motion, **options)  # type: ignore[arg-type]
     return {**shared, **own}
 
 
@@ -52,7 +56,8 @@ def decode_block(sections: Sections, header: ClipHeader) -> AnyMotion:
     """A stream block coded against its interval's model."""
     shared = {k: sections[k] for k in ("m", "p")}
     own = {k: v for k, v in sections.items() if k not in shared}
-    return decode_member(shared, own, header)
+    with ikjit.stream_block():
+        return decode_member(shared, own, header)
 
 
 __all__ = ["decode_block", "encode_block", "in_stream", "is_shared_block"]
