@@ -17,16 +17,20 @@ from mocapz.errors import FormatError
 
 MAX_COUNT = 1 << 31  # most values in one integer stream
 COLUMN_VALUES = 1 << 16  # values zigzagged per step of pack_zigzag_columns (its temporaries stay small)
-_LOCAL = threading.local()  # each thread's zstd compressor (one is not safe across threads)
+_LOCAL = threading.local()  # each thread's zstd compressors (one is not safe across threads)
+LEVEL = 19  # zstd's level of every byte-plane stream but where a caller asks another
 
 
-def _compressor() -> zstandard.ZstdCompressor:
-    """This thread's level-19 zstd compressor, made once: the same bytes as a new one per call (each
+def _compressor(level: int = LEVEL) -> zstandard.ZstdCompressor:
+    """This thread's zstd compressor of ``level``, made once: the same bytes as a new one per call (each
     ``compress`` is a frame of its own), without making its context again for each of a clip's many small
     streams (about a tenth of their time)."""
-    z = getattr(_LOCAL, "zstd", None)
+    made = getattr(_LOCAL, "zstd", None)
+    if made is None:
+        made = _LOCAL.zstd = {}
+    z = made.get(level)
     if z is None:
-        z = _LOCAL.zstd = zstandard.ZstdCompressor(level=19)
+        z = made[level] = zstandard.ZstdCompressor(level=level)
     return z
 
 
@@ -101,10 +105,10 @@ def unzigzag(u: np.ndarray) -> np.ndarray:
     return out
 
 
-def pack_uint64(values: np.ndarray) -> bytes:
-    """Pack non-negative integers as zstd-compressed byte planes (small-value friendly)."""
+def pack_uint64(values: np.ndarray, level: int = LEVEL) -> bytes:
+    """Pack non-negative integers as zstd-compressed byte planes (small-value friendly; zstd at ``level``)."""
     u = np.ascontiguousarray(values, dtype=np.uint64).ravel()
-    return _pack_planes(lambda: iter([u]), u.size)
+    return _pack_planes(lambda: iter([u]), u.size, level)
 
 
 def pack_zigzag_columns(v: np.ndarray) -> bytes:
@@ -116,7 +120,7 @@ def pack_zigzag_columns(v: np.ndarray) -> bytes:
                                  for a in range(0, cols, step)), v.size)
 
 
-def _pack_planes(chunks: Callable[[], Iterator[np.ndarray]], count: int) -> bytes:
+def _pack_planes(chunks: Callable[[], Iterator[np.ndarray]], count: int, level: int = LEVEL) -> bytes:
     """The :func:`pack_uint64` stream of the ``count`` uint64 values ``chunks()`` yields (contiguous arrays, asked
     for twice: their largest, then their bytes): the low bytes of every value, plane by plane, zstd-packed."""
     top = max((int(c.max()) for c in chunks() if c.size), default=0)
@@ -126,7 +130,7 @@ def _pack_planes(chunks: Callable[[], Iterator[np.ndarray]], count: int) -> byte
     for c in chunks():
         planes[:, pos:pos + c.size] = c.view(np.uint8).reshape(-1, 8)[:, :nbytes].T
         pos += c.size
-    body = _compressor().compress(planes)  # its buffer as it is (no bytes copy)
+    body = _compressor(level).compress(planes)  # its buffer as it is (no bytes copy)
     return write_uvarint(count) + bytes([nbytes]) + body
 
 
