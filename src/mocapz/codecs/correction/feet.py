@@ -50,19 +50,23 @@ def added_speed(contacts: Contacts | None, original: np.ndarray, pos: np.ndarray
     (both ``(frames, points, 3)``, file units), over each foot's planted steps, frame to frame and over 0.1 s
     windows (file units per second), and ``(frames, points)`` True on the foot samples whose added speed,
     largest first, makes up what is over ``limit`` (to bring it to half the limit). ``carried``: the blocks
-    before this one in a stream (:func:`speed_sums`): the mean is then the stream's so far, as METRICS.md takes
-    it over the whole file, and only this block's samples are tightened."""
+    before this one in a stream (:func:`speed_sums`): a foot then passes when its mean over the block or over
+    the stream so far (METRICS.md takes it over the whole file) is within the limit, either keeping the
+    stream's within it, and the samples to tighten make up the smaller excess (only this block's samples: a
+    stream whose mean sits at the limit is not asked to bring a long past down to half of it)."""
     out = np.zeros(pos.shape[:2], dtype=bool)
     worst = 0.0
     for w, f, idx, excess in _planted(contacts, original, pos, fps):
-        s0, n0 = (0.0, 0) if carried is None else carried.get((w, int(f)), (0.0, 0))
-        count = n0 + idx.size
-        added = float(excess[idx].mean()) if carried is None else (s0 + float(excess[idx].sum())) / count
+        own = float(excess[idx].mean())  # the block's own mean
+        added, need = own, (own - 0.5 * limit) * idx.size
+        if carried is not None:  # either mean within the limit will do (each keeps the stream's so far within it)
+            s0, n0 = carried.get((w, int(f)), (0.0, 0))
+            so_far = (s0 + float(excess[idx].sum())) / (n0 + idx.size)
+            added, need = min(own, so_far), min(need, (so_far - 0.5 * limit) * (n0 + idx.size))
         worst = max(worst, added)
         if added <= limit:
             continue
         order = idx[np.argsort(-excess[idx])]
-        need = (added - 0.5 * limit) * count
         n = int(np.searchsorted(np.cumsum(np.maximum(excess[order], 0.0)), need)) + 1
         for t in order[:n]:
             out[t : t + w + 1, f] = True
