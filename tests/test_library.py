@@ -305,3 +305,60 @@ def test_a_failed_append_leaves_the_library_as_it_was(tmp_path, monkeypatch) -> 
     (tmp_path / "cut.mczdb").write_bytes(before[: len(before) // 2])
     with pytest.raises(FormatError, match="cut.mczdb"):
         describe_library(tmp_path / "cut.mczdb")
+
+
+def test_a_large_pga_group_is_fitted_on_a_sample_and_analysed_again_with_the_same_bytes(runs, pga_lib,
+                                                                                         monkeypatch) -> None:
+    """Memory bounded whatever the library's length: with no analysed clip kept from the model's fit to the
+    coding (every clip analysed again) the library has the very bytes of the default; with the model fitted on
+    every 4th frame of the group, a different model and every clip still within its target."""
+    from mocapz.codecs.pga import library as pga_library
+
+    monkeypatch.setattr(pga_library, "HOLD_FRAMES", 0)
+    assert compress_library(runs[:2], codec="pga", max_error="1cm") == pga_lib
+    total = sum(m.n_frames for m in runs[:2])
+    monkeypatch.setattr(pga_library, "FIT_FRAMES", total // 4)
+    sampled = compress_library(runs[:2], codec="pga", max_error="1cm")
+    lib, full = Library.from_bytes(sampled), Library.from_bytes(pga_lib)
+    assert lib.group_sections(0)["m"] != full.group_sections(0)["m"]
+    for m in runs[:2]:
+        assert evaluate(m, read_clip(sampled, m.name)).max_err_cm <= 1.0
+
+
+@pytest.mark.parametrize("codec", ["pga", "patterns", "quant"])
+def test_library_progress_reports_every_clip_once(runs, codec) -> None:
+    from mocapz.libraries import append_library
+
+    seen: list[int] = []
+    data = compress_library(runs[:2], codec=codec, progress=seen.append, max_error="2cm")
+    assert seen == [m.n_frames for m in runs[:2]]
+    seen.clear()
+    append_library(data, [runs[2]], progress=seen.append, max_error="2cm")
+    assert seen == [runs[2].n_frames]
+
+
+def test_compress_db_and_verify_messages(tmp_path) -> None:
+    """-q: nothing on stderr but errors; verify names a damaged clip on one line (every clip only with -v) and
+    exits 1."""
+    runner = CliRunner()
+    lib = tmp_path / "q.mczdb"
+    first, second = (str(data_path(p)) for p in SAME_SKELETON)
+    res = runner.invoke(cli, ["compress-db", first, second, "-o", str(lib), "--codec", "quant", "-q"])
+    assert res.exit_code == 0 and res.stderr == "" and res.stdout == ""
+    res = runner.invoke(cli, ["compress-db", first, "-o", str(lib), "--codec", "quant", "-f"])
+    assert res.exit_code == 0 and res.stderr.startswith("1 clip -> ")
+    res = runner.invoke(cli, ["compress-db", first, second, "-o", str(lib), "--codec", "quant", "-f"])
+    good = lib.read_bytes()
+    lib2 = Library.from_bytes(good)
+    name, payload = next((k, v) for k, v in lib2.sections.items() if k.startswith("c1.") and len(v) > 8)
+    damaged = bytearray(good)
+    at = good.index(payload) + len(payload) // 2
+    damaged[at] ^= 0xFF
+    lib.write_bytes(bytes(damaged))
+    res = runner.invoke(cli, ["verify", str(lib)])
+    lines = res.stderr.strip().splitlines()
+    assert res.exit_code == 1 and len(lines) == 2 and lines[0].startswith("09_01: DAMAGED"), res.stderr
+    res = runner.invoke(cli, ["verify", str(lib), "-v"])
+    assert res.exit_code == 1 and res.stderr.splitlines()[0] == "09_06: ok"
+    res = runner.invoke(cli, ["verify", str(lib), "-q"])
+    assert res.exit_code == 1 and res.stderr.splitlines() == lines[:1]

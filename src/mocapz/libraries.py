@@ -22,7 +22,7 @@ from typing import Any
 
 from mocapz import blocking
 from mocapz.codecs import get_codec
-from mocapz.codecs.library import LibraryMode, quant_mode
+from mocapz.codecs.library import Done, LibraryMode, quant_mode
 from mocapz.errors import FormatError, MocapzError, OptionError
 from mocapz.format.extras import attach, sections_of, split_sections
 from mocapz.format.library import Library, clip_entry, read_library, read_members, unique_names
@@ -66,12 +66,14 @@ def _group_by(mode: LibraryMode, motions: list[AnyMotion]) -> dict[tuple, list[i
     return members
 
 
-def compress_library(motions: list[AnyMotion], codec: str = DEFAULT_CODEC, **options: Any) -> bytes:
+def compress_library(motions: list[AnyMotion], codec: str = DEFAULT_CODEC, progress: Done | None = None,
+                     **options: Any) -> bytes:
     """Compress clips into the bytes of a ``.mczdb`` library.
 
     Args:
         motions: the clips (names made unique: ``walk``, ``walk_2``...).
         codec: ``pga``, ``patterns`` (the default) or ``quant``.
+        progress: called with a clip's frames as each clip is coded (a progress display).
         **options: that codec's options (``docs/options.md``); the targets (``max_error``,
             ``max_distortion``, ``max_arms``) hold for every clip, each in its own length unit.
 
@@ -84,23 +86,27 @@ def compress_library(motions: list[AnyMotion], codec: str = DEFAULT_CODEC, **opt
     mode, checked = _checked(codec, motions, options)
     lib = Library(index={"codec": mode.codec, "codec_version": mode.version, "skeletons": [], "groups": [],
                          "clips": [], "settings": {}})
-    _add(lib, mode, checked, motions, unique_names(motions), {})
+    _add(lib, mode, checked, motions, unique_names(motions), {}, progress or _nothing)
     return lib.to_bytes()
 
 
+def _nothing(frames: int) -> None:
+    pass
+
+
 def _add(lib: Library, mode: LibraryMode, options: dict[str, Any], motions: list[AnyMotion], names: list[str],
-         into: dict[tuple, int]) -> None:
+         into: dict[tuple, int], done: Done) -> None:
     """Code ``motions`` into ``lib``: clips whose group key is in ``into`` (key -> group) are coded against
-    that group's stored shared sections, the others in new groups."""
+    that group's stored shared sections, the others in new groups; ``done(frames)`` after each clip."""
     clips: list[tuple[int, dict[str, bytes], int]] = []  # (motion index, own sections, group)
     for key, members in _group_by(mode, motions).items():
         group_motions = [motions[i] for i in members]
         if key in into and mode.encode_into is not None:
             g = into[key]
-            own = mode.encode_into(lib.group_sections(g), group_motions, options)
+            own = mode.encode_into(lib.group_sections(g), group_motions, options, done)
         else:
             g = len(lib.index["groups"])
-            shared, own, info = mode.encode_group(group_motions, options)
+            shared, own, info = mode.encode_group(group_motions, options, done)
             lib.add_group(g, shared)
             lib.index["groups"].append({**info, "kind": group_motions[0].kind, "clips": 0})
         clips += [(i, o, g) for i, o in zip(members, own, strict=True)]
@@ -112,13 +118,14 @@ def _add(lib: Library, mode: LibraryMode, options: dict[str, Any], motions: list
 
 
 def append_library(data: bytes, motions: list[AnyMotion], path: str | os.PathLike[str] | None = None,
-                   **options: Any) -> bytes:
+                   progress: Done | None = None, **options: Any) -> bytes:
     """The library ``data`` with ``motions`` added; every clip already in it keeps its bytes.
 
     New clips with a group's layout are coded against that group's shared sections (pga: its pose model)
     where the codec can; patterns' databases depend on all their clips, so new pattern clips form a new
     group. A skeleton already stored is not stored again. ``options`` are the codec's (the library's codec,
     read from ``data``); a version 1 library cannot take new clips (compress its sources again).
+    ``progress``: called with a clip's frames as each new clip is coded.
     """
     if not motions:
         raise OptionError("compress-db --append: no input clips")
@@ -132,7 +139,7 @@ def append_library(data: bytes, motions: list[AnyMotion], path: str | os.PathLik
         for j in range(len(lib.index["clips"])):  # the group of every layout already in the library
             header = lib.clip_header(j)
             into.setdefault(mode.group_key(header.motion(_empty_values(header))), lib.group_of(j))
-    _add(lib, mode, checked, motions, unique_names(motions, lib.clip_names()), into)
+    _add(lib, mode, checked, motions, unique_names(motions, lib.clip_names()), into, progress or _nothing)
     return lib.to_bytes()
 
 
@@ -198,9 +205,10 @@ def list_clips(data: bytes, path: str | os.PathLike[str] | None = None) -> list[
     return [{k: c.get(k) for k in keys} | {"bytes": lib.clip_bytes(j)} for j, c in enumerate(lib.index["clips"])]
 
 
-def verify_library(data: bytes, path: str | os.PathLike[str] | None = None, decode: bool = False) -> dict[str, Any]:
+def verify_library(data: bytes, path: str | os.PathLike[str] | None = None, decode: bool = False,
+                   progress: Done | None = None) -> dict[str, Any]:
     """Check a library: the whole file's checksum and every clip's (its own, its group's and its skeleton's
-    sections); with ``decode``, every intact clip is decoded too.
+    sections); with ``decode``, every intact clip is decoded too. ``progress(frames)`` after each clip.
 
     Returns ``{"ok", "file_checksum", "clips": [{"name", "ok", "damaged", ...}]}``; a damaged index or
     framing raises FormatError (nothing can be told of the clips then).
@@ -220,6 +228,7 @@ def verify_library(data: bytes, path: str | os.PathLike[str] | None = None, deco
             except MocapzError as exc:
                 entry.update(ok=False, error=str(exc))
         clips.append(entry)
+        (progress or _nothing)(int(lib.index["clips"][j].get("frames") or 0))
     return {"file": None if path is None else str(path), "format_version": lib.version, "file_checksum": file_ok,
             "per_clip_checksums": lib.version >= 2, "ok": file_ok and all(c["ok"] for c in clips), "clips": clips}
 

@@ -15,7 +15,7 @@ from typing import Any
 import click
 
 from mocapz.cli.codec_flags import CodecCommand, codec_flags, given
-from mocapz.cli.common import Say
+from mocapz.cli.common import Say, message_flags
 from mocapz.codecs import get_codec
 from mocapz.errors import OptionError
 
@@ -57,10 +57,11 @@ class LibraryCommand(CodecCommand):
               help="read the clips on a Dask cluster (tcp://host:8786, or 'local')")
 @click.option("--codec", default=None, help="pga, patterns or quant  [default: patterns; with --append the "
                                             "library's]")
+@message_flags
 @codec_flags()
 def compress_db(inputs: tuple[Path, ...], output: Path, force: bool, append: bool, as_json: bool,
-                weight_pairs: tuple[str, ...], jobs: int, scheduler: str | None, codec: str | None,
-                **codec_options: Any) -> None:
+                weight_pairs: tuple[str, ...], jobs: int, scheduler: str | None, codec: str | None, quiet: bool,
+                verbose: bool, **codec_options: Any) -> None:
     """Compress INPUT files (.bvh, .amc, .c3d, .trc) or folders of them into one .mczdb library: clips with the
     same skeleton store it once, pga shares one pose model per skeleton, patterns its pattern databases; every
     clip meets the target as when compressed alone. With --append the clips are added to LIBRARY.mczdb (the
@@ -99,7 +100,7 @@ def compress_db(inputs: tuple[Path, ...], output: Path, force: bool, append: boo
     if output.exists() and not force and not append:
         raise MocapzError(f"{output}: output exists (use -f to overwrite, or --append to add clips)")
     motions, failed = [], 0
-    say = Say(quiet=as_json)
+    say = Say(quiet=as_json or quiet, verbose=verbose)
     with say.progress(f"compress-db: reading {len(paths)} clips", total=len(paths)) as advance:
         for path, motion, reason in load_many(paths, jobs=jobs, scheduler=scheduler):
             advance(1)
@@ -112,9 +113,10 @@ def compress_db(inputs: tuple[Path, ...], output: Path, force: bool, append: boo
         raise MocapzError("no clip could be read")
     t0 = time.perf_counter()
     frames = sum(m.n_frames for m in motions)
-    with say.progress(f"compress-db: {len(motions)} clips, {frames} frames, {codec} library mode"):
-        data = append_library(old, motions, output, **options) if append else compress_library(motions, codec,
-                                                                                               **options)
+    say.detail(f"compress-db: {_clips(len(motions))}, {frames} frames, {codec} library mode")
+    with say.progress(f"compress-db: coding {len(motions)} clips ({codec}), frames", total=frames) as advance:
+        data = append_library(old, motions, output, progress=advance, **options) if append \
+            else compress_library(motions, codec, progress=advance, **options)
     elapsed = time.perf_counter() - t0
     # written to a temporary file renamed into place: a failure leaves the old library as it was
     atomic_write(output, lambda tmp: tmp.write_bytes(data), force=force or append)
@@ -126,33 +128,48 @@ def compress_db(inputs: tuple[Path, ...], output: Path, force: bool, append: boo
         click.echo(json.dumps(info))
     else:
         what = f"added to {output} ({len(data)} bytes)" if append else f"-> {output}: {len(data)} bytes"
-        click.echo(f"{len(motions)} clips {what}, ratio {info['ratio']:.4g}, {elapsed:.2f} s"
-                   + (f"; {failed} clip(s) failed" if failed else ""), err=True)
+        say.info(f"{_clips(len(motions))} {what}, ratio {info['ratio']:.4g}, "
+                 f"{elapsed:.2f} s" + (f"; {failed} clip(s) failed" if failed else ""))
     if failed:
         sys.exit(1)
+
+
+def _clips(n: int) -> str:
+    return f"{n} clip" if n == 1 else f"{n} clips"
 
 
 @click.command(name="verify")
 @click.argument("library", type=click.Path(path_type=Path))
 @click.option("--decode", is_flag=True, help="decode every clip too")
 @click.option("--json", "as_json", is_flag=True, help="print one JSON object")
-def verify(library: Path, decode: bool, as_json: bool) -> None:
-    """Check a .mczdb library: the file's checksum and every clip's (exit code 1 if a clip is damaged)."""
+@message_flags
+def verify(library: Path, decode: bool, as_json: bool, quiet: bool, verbose: bool) -> None:
+    """Check a .mczdb library: the file's checksum and every clip's (exit code 1 if a clip is damaged). A
+    damaged clip is one line on stderr, even with -q (every clip with -v); the last line says how the library is."""
     import sys
 
     from mocapz.errors import FormatError
+    from mocapz.format.library import Library
     from mocapz.libraries import verify_library
 
     if not library.is_file():
         raise FormatError(library, "no such file")
-    report = verify_library(library.read_bytes(), library, decode=decode)
+    say = Say(quiet=as_json or quiet, verbose=verbose)
+    data = library.read_bytes()
+    total = sum(int(c.get("frames") or 0) for c in Library.from_bytes(data, library, check=False).index["clips"])
+    with say.progress(f"verify: {'decoding' if decode else 'checking'} {library.name}, frames",
+                      total=total) as advance:
+        report = verify_library(data, library, decode=decode, progress=advance)
     if as_json:
         click.echo(json.dumps(report))
     else:
         for c in report["clips"]:
             state = "ok" if c["ok"] else "DAMAGED (" + ", ".join(c["damaged"] or [c.get("error", "")]) + ")"
-            click.echo(f"{c['name']}: {state}", err=True)
-        click.echo(f"{library}: {'ok' if report['ok'] else 'damaged'} ({len(report['clips'])} clips, file "
-                   f"checksum {'ok' if report['file_checksum'] else 'mismatch'})", err=True)
+            if c["ok"]:
+                say.detail(f"{c['name']}: {state}")
+            else:  # an error: shown even with -q
+                click.echo(f"{c['name']}: {state}", err=True)
+        say.info(f"{library}: {'ok' if report['ok'] else 'damaged'} ({_clips(len(report['clips']))}, file "
+                 f"checksum {'ok' if report['file_checksum'] else 'mismatch'})")
     if not report["ok"]:
         sys.exit(1)

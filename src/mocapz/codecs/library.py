@@ -21,11 +21,13 @@ from mocapz.model.header import ClipHeader
 from mocapz.model.motion import AnyMotion, MarkerMotion
 
 Sections = dict[str, bytes]
-#: ``(clips, checked options) -> (the group's shared sections, per clip its own sections, what to record of
-#: the group in the library's index)``
-GroupEncoder = Callable[[list[AnyMotion], dict[str, Any]], tuple[Sections, list[Sections], dict[str, Any]]]
-#: ``(the group's stored shared sections, new clips, checked options) -> per clip its own sections``
-MemberEncoder = Callable[[Mapping[str, bytes], list[AnyMotion], dict[str, Any]], list[Sections]]
+#: called with a clip's frames as soon as that clip is coded (progress displays)
+Done = Callable[[int], None]
+#: ``(clips, checked options, done) -> (the group's shared sections, per clip its own sections, what to record
+#: of the group in the library's index)``
+GroupEncoder = Callable[[list[AnyMotion], dict[str, Any], Done], tuple[Sections, list[Sections], dict[str, Any]]]
+#: ``(the group's stored shared sections, new clips, checked options, done) -> per clip its own sections``
+MemberEncoder = Callable[[Mapping[str, bytes], list[AnyMotion], dict[str, Any], Done], list[Sections]]
 #: ``(the group's shared sections, the clip's own sections, its header) -> the clip``
 MemberDecoder = Callable[[Mapping[str, bytes], Sections, ClipHeader], AnyMotion]
 
@@ -64,12 +66,17 @@ def quant_mode() -> LibraryMode:
     """quant's library mode: the skeleton shared (by the library), each clip coded as alone."""
     from mocapz.codecs.baselines.quant import DECODE, ENCODE, VERSION
 
-    def encode_into(shared: Mapping[str, bytes], motions: list[AnyMotion], options: dict[str, Any]) -> list[Sections]:
-        return [ENCODE(m, **options) for m in motions]
+    def encode_into(shared: Mapping[str, bytes], motions: list[AnyMotion], options: dict[str, Any], done: Done
+                    ) -> list[Sections]:
+        out = []
+        for m in motions:
+            out.append(ENCODE(m, **options))
+            done(m.n_frames)
+        return out
 
-    def encode_group(motions: list[AnyMotion], options: dict[str, Any]
+    def encode_group(motions: list[AnyMotion], options: dict[str, Any], done: Done
                      ) -> tuple[Sections, list[Sections], dict[str, Any]]:
-        return {}, encode_into({}, motions, options), {}
+        return {}, encode_into({}, motions, options, done), {}
 
     return LibraryMode("quant", VERSION, encode_group, encode_into, lambda shared, own, header: DECODE(own, header),
                        layout_key)

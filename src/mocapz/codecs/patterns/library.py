@@ -25,7 +25,7 @@ from typing import Any
 import numpy as np
 
 from mocapz.codecs.correction.wrap import corrected, given_settings, native_targets
-from mocapz.codecs.library import LibraryMode
+from mocapz.codecs.library import Done, LibraryMode
 from mocapz.codecs.patterns import VERSION
 from mocapz.codecs.patterns.bodies import code_clips
 from mocapz.codecs.patterns.decode import decode_clip, members_of
@@ -117,7 +117,7 @@ def code_groups(motions: list[AnyMotion], groups: list[Group], settings: Setting
     return out
 
 
-def encode_group(motions: list[AnyMotion], options: dict[str, Any]
+def encode_group(motions: list[AnyMotion], options: dict[str, Any], done: Done
                  ) -> tuple[dict[str, bytes], list[dict[str, bytes]], dict[str, Any]]:
     """Code one group of clips (same layout) with shared databases, then each clip's correction.
 
@@ -161,6 +161,7 @@ def encode_group(motions: list[AnyMotion], options: dict[str, Any]
         own.append(corrected(base, _decoder(coded.shared), "patterns", OPTIONS)[0](m, **options))
         if not given_settings(options, OPTIONS):  # the correction alone: what the clip costs without databases
             alone.append(corrected(_no_base, _decoder({}), "patterns", OPTIONS)[0](m, **options))
+        done(m.n_frames)
     shared = coded.shared
     if alone and _size(alone) <= _size(own) + _size([shared]):
         # the databases cost more than they save (each clip decides for its own base, not for the databases):

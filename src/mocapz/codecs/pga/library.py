@@ -28,7 +28,7 @@ from typing import Any
 import numpy as np
 
 from mocapz.codecs.correction.wrap import corrected
-from mocapz.codecs.library import LibraryMode, Sections, layout_key
+from mocapz.codecs.library import Done, LibraryMode, Sections, layout_key
 from mocapz.codecs.pga.codec import DECODE, ENCODE, VERSION, _base_options
 from mocapz.codecs.pga.decode import decode as decode_single
 from mocapz.codecs.pga.decode import with_turns
@@ -48,6 +48,8 @@ from mocapz.model.motion import AnyMotion, Motion
 
 MODEL_MATRICES = 2  # header column and loadings: the first matrices of a single clip's ``data``
 MAX_K = 20  # the single-clip default's cap
+FIT_FRAMES = 30_000  # a group's pose model is fitted on at most this many frames (about 4 minutes at 120 fps)
+HOLD_FRAMES = 12_000  # frames of analysed clips kept from the fit to the coding (the others analysed again)
 OWN = "own"  # flag section: the clip is coded with its own model (a single file's sections)
 
 
@@ -93,12 +95,19 @@ class SharedModel:
 
 def fit_shared(preps: list[Prepared], options: dict[str, Any]) -> SharedModel:
     """Fit and quantise the pose model of a group of prepared clips (same skeleton layout)."""
-    sk = preps[0].motion.skeleton
-    inner = inner_joints(sk)
-    rot = np.concatenate([p.clip.local_rot[:, inner] for p in preps if len(p.kept)])
+    inner = inner_joints(preps[0].motion.skeleton)
+    return fit_rotations([p.clip.local_rot[:, inner] for p in preps if len(p.kept)], inner, options)
+
+
+def fit_rotations(rots: list[np.ndarray], inner: np.ndarray, options: dict[str, Any]) -> SharedModel:
+    """Fit and quantise the pose model of a group's inner-joint rotations (per clip ``(frames, n, 3, 3)``:
+    its kept frames, or the sample of them :func:`_fit_sample` takes)."""
+    rot = np.concatenate(rots) if rots else np.zeros((0, len(inner), 3, 3))
+    del rots[:]  # the clips' arrays are not kept beside their concatenation (peak memory)
     if not len(rot):
         raise OptionError("compress-db --codec pga: the clips have no frames to fit a pose model on")
     model = fit_pga(rot, inner)
+    del rot
     dim = model.basis.shape[1]
     k = options.get("geodesics")
     if k is None:
@@ -174,27 +183,53 @@ def _size(sections: Sections) -> int:
     return sum(len(k) + 2 + len(v) for k, v in sections.items())
 
 
-def encode_into(shared: Mapping[str, bytes], motions: list[AnyMotion], options: dict[str, Any]) -> list[Sections]:
+def encode_into(shared: Mapping[str, bytes], motions: list[AnyMotion], options: dict[str, Any], done: Done
+                ) -> list[Sections]:
     """New clips coded against a group's stored model (or their own, when smaller; targets met by the
     correction layer)."""
     out = []
     for m in motions:
         if "m" not in shared:  # the group keeps no model (its clips' own were smaller)
             out.append({**ENCODE(m, **options), OWN: b""})
-            continue
-        p = _prepare(m, options)  # type: ignore[arg-type]
-        model = SharedModel.from_sections(shared, inner_joints(m.skeleton))  # type: ignore[union-attr]
-        out.append(min(_both(p, model, shared, options), key=_size))
+        else:
+            p = _prepare(m, options)  # type: ignore[arg-type]
+            model = SharedModel.from_sections(shared, inner_joints(m.skeleton))  # type: ignore[union-attr]
+            out.append(min(_both(p, model, shared, options), key=_size))
+            del p
+        done(m.n_frames)
     return out
 
 
-def encode_group(motions: list[AnyMotion], options: dict[str, Any]
+def encode_group(motions: list[AnyMotion], options: dict[str, Any], done: Done
                  ) -> tuple[Sections, list[Sections], dict[str, Any]]:
-    """A group's shared model, its clips' own sections and its index entry (k, bits)."""
-    preps = [_prepare(m, options) for m in motions]  # type: ignore[arg-type]
-    model = fit_shared(preps, options)
+    """A group's shared model, its clips' own sections and its index entry (k, bits).
+
+    Memory stays bounded whatever the group's length: the model is fitted on at most :data:`FIT_FRAMES`
+    frames (every ``s``-th kept frame of the group, in clip order, when it has more; all of them otherwise),
+    and a clip's analysis (:func:`~mocapz.codecs.pga.encode.prepare`) is kept from the fit to the coding only
+    while the kept ones hold at most :data:`HOLD_FRAMES` frames (the others are analysed again: the same
+    result, so the same bytes)."""
+    stride = max(1, -(-sum(m.n_frames for m in motions) // FIT_FRAMES))
+    rots: list[np.ndarray] = []
+    held: dict[int, Prepared] = {}
+    taken = 0  # kept frames of the group so far: where the sample goes on in the next clip
+    for i, m in enumerate(motions):
+        p = _prepare(m, options)  # type: ignore[arg-type]
+        if len(p.kept):
+            inner = inner_joints(p.motion.skeleton)
+            rots.append(p.clip.local_rot[(-taken) % stride::stride, inner])
+            taken += len(p.kept)
+        if sum(len(h.kept) for h in held.values()) + len(p.kept) <= HOLD_FRAMES:
+            held[i] = p
+        del p
+    model = fit_rotations(rots, inner_joints(motions[0].skeleton), options)  # type: ignore[union-attr]
     shared = model.sections()
-    pairs = [_both(p, model, shared, options) for p in preps]
+    pairs = []
+    for i, m in enumerate(motions):
+        p = held.pop(i, None) or _prepare(m, options)  # type: ignore[arg-type]
+        pairs.append(_both(p, model, shared, options))
+        del p
+        done(m.n_frames)
     own = [min(pair, key=_size) for pair in pairs]
     if sum(map(_size, own)) + _size(shared) >= sum(_size(pair[1]) for pair in pairs):
         # the model is worth less than it costs: no shared model, every clip with its own
