@@ -362,3 +362,56 @@ def test_compress_db_and_verify_messages(tmp_path) -> None:
     assert res.exit_code == 1 and res.stderr.splitlines()[0] == "09_06: ok"
     res = runner.invoke(cli, ["verify", str(lib), "-q"])
     assert res.exit_code == 1 and res.stderr.splitlines() == lines[:1]
+
+
+def test_a_library_of_more_than_ten_skeletons_verifies(runs) -> None:
+    """Skeleton 1's checksum covers section s1 alone, not s10, s11...: a library of 12 skeletons (one clip with
+    its bones scaled 12 ways) verifies whole, and a damaged s1 is found on its clip only."""
+    from dataclasses import replace
+
+    from mocapz.libraries import verify_library
+
+    short = runs[0].slice(0, 40)
+    clips = []
+    for i in range(12):
+        sk = short.skeleton.copy()
+        sk.offsets = sk.offsets * (1.0 + 0.01 * i)
+        clips.append(replace(short, skeleton=sk, name=f"scaled_{i}"))
+    data = compress_library(clips, codec="quant", max_error="2cm")
+    lib = Library.from_bytes(data)
+    assert len(lib.index["skeletons"]) == 12
+    report = verify_library(data, decode=True)
+    assert report["ok"], [c for c in report["clips"] if not c["ok"]]
+    payload = lib.sections["s1"]
+    at = data.index(payload) + len(payload) // 2
+    bad = bytearray(data)
+    bad[at] ^= 0x55
+    report = verify_library(bytes(bad))
+    assert [c["name"] for c in report["clips"] if not c["ok"]] == ["scaled_1"]
+    assert report["clips"][1]["damaged"] == ["skeleton"]
+
+
+def test_compress_db_leaves_out_a_clip_its_codec_does_not_take(tmp_path) -> None:
+    """A marker file in the inputs of a pga library is one error line and left out (exit code 1); the skeletal
+    clips are coded."""
+    lib = tmp_path / "p.mczdb"
+    bvh, trc = str(data_path(SAME_SKELETON[0])), str(data_path("other/markers/btkdata/Gait.trc"))
+    res = CliRunner().invoke(cli, ["compress-db", trc, bvh, "-o", str(lib), "--codec", "pga", "--max-error", "2cm"])
+    assert res.exit_code == 1, res.output
+    assert res.stderr.splitlines()[0] == f"mocapz: error: {trc}: the pga codec does not take markers data (it " \
+                                         "takes skeleton data)"
+    assert describe_library(lib)["clips"] == ["09_06"]
+
+
+def test_library_coded_on_two_workers_has_the_same_bytes(runs, pga_lib) -> None:
+    """Every clip is coded on its own (after its group's shared model or databases): the bytes do not depend on
+    where, for every library mode, compressed or appended."""
+    from mocapz.libraries import append_library
+
+    assert compress_library(runs[:2], codec="pga", max_error="1cm", jobs=2) == pga_lib
+    assert append_library(pga_lib, [runs[2]], max_error="1cm", jobs=2) == append_library(pga_lib, [runs[2]],
+                                                                                       max_error="1cm")
+    short = [m.slice(0, 120) for m in runs]
+    for codec in ("quant", "patterns"):
+        assert compress_library(short, codec=codec, max_error="2cm", jobs=2) == \
+            compress_library(short, codec=codec, max_error="2cm"), codec

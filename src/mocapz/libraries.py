@@ -16,13 +16,15 @@ Options are checked here, once, against the codec's declarations. The file frami
 
 from __future__ import annotations
 
+import contextlib
 import os
+from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
 from typing import Any
 
 from mocapz import blocking
 from mocapz.codecs import get_codec
-from mocapz.codecs.library import Done, LibraryMode, quant_mode
+from mocapz.codecs.library import Done, LibraryMode, Work, quant_mode
 from mocapz.errors import FormatError, MocapzError, OptionError
 from mocapz.format.extras import attach, sections_of, split_sections
 from mocapz.format.library import Library, clip_entry, read_library, read_members, unique_names
@@ -67,13 +69,16 @@ def _group_by(mode: LibraryMode, motions: list[AnyMotion]) -> dict[tuple, list[i
 
 
 def compress_library(motions: list[AnyMotion], codec: str = DEFAULT_CODEC, progress: Done | None = None,
-                     **options: Any) -> bytes:
+                     jobs: int = 1, scheduler: str | None = None, **options: Any) -> bytes:
     """Compress clips into the bytes of a ``.mczdb`` library.
 
     Args:
         motions: the clips (names made unique: ``walk``, ``walk_2``...).
         codec: ``pga``, ``patterns`` (the default) or ``quant``.
         progress: called with a clip's frames as each clip is coded (a progress display).
+        jobs, scheduler: where the clips are coded (:class:`~mocapz.parallel.pool.Pool`: 1, this process;
+            N worker processes; a Dask scheduler): every clip is coded on its own (a group's shared model or
+            databases first, here), so the bytes are the same whatever they are.
         **options: that codec's options (``docs/options.md``); the targets (``max_error``,
             ``max_distortion``, ``max_arms``) hold for every clip, each in its own length unit.
 
@@ -86,7 +91,8 @@ def compress_library(motions: list[AnyMotion], codec: str = DEFAULT_CODEC, progr
     mode, checked = _checked(codec, motions, options)
     lib = Library(index={"codec": mode.codec, "codec_version": mode.version, "skeletons": [], "groups": [],
                          "clips": [], "settings": {}})
-    _add(lib, mode, checked, motions, unique_names(motions), {}, progress or _nothing)
+    with _work(progress, jobs, scheduler, len(motions)) as work:
+        _add(lib, mode, checked, motions, unique_names(motions), {}, work)
     return lib.to_bytes()
 
 
@@ -94,19 +100,39 @@ def _nothing(frames: int) -> None:
     pass
 
 
+@contextlib.contextmanager
+def _work(progress: Done | None, jobs: int, scheduler: str | None, clips: int) -> Iterator[Work]:
+    """How the clips are coded: in this process, or on a pool of ``jobs`` workers (or a Dask scheduler)."""
+    done = progress or _nothing
+    if jobs == 1 and scheduler is None:
+        yield Work(done=done)
+        return
+    from mocapz.parallel.pool import Pool
+
+    with Pool(jobs, scheduler, max_items=clips, preload=["mocapz.libraries", "mocapz.codecs.correction.wrap"]) \
+            as pool:
+        def each(fn: Callable[[Any], Any], items: Iterable[Any]) -> Iterator[Any]:
+            for outcome in pool.imap(fn, items, ordered=True):
+                if outcome.error is not None:
+                    raise outcome.error
+                yield outcome.value
+
+        yield Work(each, done)
+
+
 def _add(lib: Library, mode: LibraryMode, options: dict[str, Any], motions: list[AnyMotion], names: list[str],
-         into: dict[tuple, int], done: Done) -> None:
+         into: dict[tuple, int], work: Work) -> None:
     """Code ``motions`` into ``lib``: clips whose group key is in ``into`` (key -> group) are coded against
-    that group's stored shared sections, the others in new groups; ``done(frames)`` after each clip."""
+    that group's stored shared sections, the others in new groups (the clips run by ``work``)."""
     clips: list[tuple[int, dict[str, bytes], int]] = []  # (motion index, own sections, group)
     for key, members in _group_by(mode, motions).items():
         group_motions = [motions[i] for i in members]
         if key in into and mode.encode_into is not None:
             g = into[key]
-            own = mode.encode_into(lib.group_sections(g), group_motions, options, done)
+            own = mode.encode_into(lib.group_sections(g), group_motions, options, work)
         else:
             g = len(lib.index["groups"])
-            shared, own, info = mode.encode_group(group_motions, options, done)
+            shared, own, info = mode.encode_group(group_motions, options, work)
             lib.add_group(g, shared)
             lib.index["groups"].append({**info, "kind": group_motions[0].kind, "clips": 0})
         clips += [(i, o, g) for i, o in zip(members, own, strict=True)]
@@ -118,14 +144,16 @@ def _add(lib: Library, mode: LibraryMode, options: dict[str, Any], motions: list
 
 
 def append_library(data: bytes, motions: list[AnyMotion], path: str | os.PathLike[str] | None = None,
-                   progress: Done | None = None, **options: Any) -> bytes:
+                   progress: Done | None = None, jobs: int = 1, scheduler: str | None = None,
+                   **options: Any) -> bytes:
     """The library ``data`` with ``motions`` added; every clip already in it keeps its bytes.
 
     New clips with a group's layout are coded against that group's shared sections (pga: its pose model)
     where the codec can; patterns' databases depend on all their clips, so new pattern clips form a new
     group. A skeleton already stored is not stored again. ``options`` are the codec's (the library's codec,
     read from ``data``); a version 1 library cannot take new clips (compress its sources again).
-    ``progress``: called with a clip's frames as each new clip is coded.
+    ``progress``: called with a clip's frames as each new clip is coded; ``jobs``, ``scheduler``: where they
+    are coded (as :func:`compress_library`).
     """
     if not motions:
         raise OptionError("compress-db --append: no input clips")
@@ -139,7 +167,8 @@ def append_library(data: bytes, motions: list[AnyMotion], path: str | os.PathLik
         for j in range(len(lib.index["clips"])):  # the group of every layout already in the library
             header = lib.clip_header(j)
             into.setdefault(mode.group_key(header.motion(_empty_values(header))), lib.group_of(j))
-    _add(lib, mode, checked, motions, unique_names(motions, lib.clip_names()), into, progress or _nothing)
+    with _work(progress, jobs, scheduler, len(motions)) as work:
+        _add(lib, mode, checked, motions, unique_names(motions, lib.clip_names()), into, work)
     return lib.to_bytes()
 
 

@@ -52,9 +52,9 @@ class LibraryCommand(CodecCommand):
 @click.option("--json", "as_json", is_flag=True, help="print one JSON object")
 @click.option("--weight", "weight_pairs", multiple=True, help="marker weight LABEL=VALUE (repeatable; patterns)")
 @click.option("-j", "--jobs", type=click.IntRange(min=1), default=1, show_default=True,
-              help="worker processes reading the clips")
+              help="worker processes reading and coding the clips (the same bytes whatever their number)")
 @click.option("--scheduler", default=None, metavar="ADDRESS",
-              help="read the clips on a Dask cluster (tcp://host:8786, or 'local')")
+              help="read and code the clips on a Dask cluster (tcp://host:8786, or 'local')")
 @click.option("--codec", default=None, help="pga, patterns or quant  [default: patterns; with --append the "
                                             "library's]")
 @message_flags
@@ -65,8 +65,8 @@ def compress_db(inputs: tuple[Path, ...], output: Path, force: bool, append: boo
     """Compress INPUT files (.bvh, .amc, .c3d, .trc) or folders of them into one .mczdb library: clips with the
     same skeleton store it once, pga shares one pose model per skeleton, patterns its pattern databases; every
     clip meets the target as when compressed alone. With --append the clips are added to LIBRARY.mczdb (the
-    clips in it keep their bytes). Clips are read in parallel (--jobs / --scheduler). A clip that cannot be
-    read is reported and left out (exit code 1)."""
+    clips in it keep their bytes). Clips are read and coded in parallel (--jobs / --scheduler). A clip that cannot be
+    read, or whose data the codec does not take (markers for pga), is reported and left out (exit code 1)."""
     import sys
 
     from mocapz.errors import MocapzError
@@ -101,9 +101,13 @@ def compress_db(inputs: tuple[Path, ...], output: Path, force: bool, append: boo
         raise MocapzError(f"{output}: output exists (use -f to overwrite, or --append to add clips)")
     motions, failed = [], 0
     say = Say(quiet=as_json or quiet, verbose=verbose)
+    kinds = get_codec(codec).kinds
     with say.progress(f"compress-db: reading {len(paths)} clips", total=len(paths)) as advance:
         for path, motion, reason in load_many(paths, jobs=jobs, scheduler=scheduler):
             advance(1)
+            if motion is not None and motion.kind not in kinds:  # e.g. a marker file in a folder, for pga
+                motion, reason = None, f"the {codec} codec does not take {motion.kind} data (it takes " \
+                                       f"{' and '.join(kinds)} data)"
             if motion is None:
                 failed += 1
                 click.echo(f"mocapz: error: {path}: {reason}", err=True)
@@ -115,8 +119,9 @@ def compress_db(inputs: tuple[Path, ...], output: Path, force: bool, append: boo
     frames = sum(m.n_frames for m in motions)
     say.detail(f"compress-db: {_clips(len(motions))}, {frames} frames, {codec} library mode")
     with say.progress(f"compress-db: coding {len(motions)} clips ({codec}), frames", total=frames) as advance:
-        data = append_library(old, motions, output, progress=advance, **options) if append \
-            else compress_library(motions, codec, progress=advance, **options)
+        where = {"progress": advance, "jobs": jobs, "scheduler": scheduler}
+        data = append_library(old, motions, output, **where, **options) if append \
+            else compress_library(motions, codec, **where, **options)
     elapsed = time.perf_counter() - t0
     # written to a temporary file renamed into place: a failure leaves the old library as it was
     atomic_write(output, lambda tmp: tmp.write_bytes(data), force=force or append)

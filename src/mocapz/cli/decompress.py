@@ -95,7 +95,8 @@ def _one(path: Path, root: Path | None, output: Path | None, many: bool, fmt_nam
             say.info(f"{name} -> -: {n} frames, {time.perf_counter() - t0:.3f} s")
             return {"input": name, "outputs": ["-"], "frames": n}
         # a file coded in blocks decodes only the blocks the range needs
-        motion = do_decompress(data, name, frames=sel)
+        with say.progress(f"{name}: decoding"):
+            motion = do_decompress(data, name, frames=sel)
         rng = (None, None, None)
     motion = cut(motion, frame_slice(*rng, motion.frame_rate, motion.n_frames))
     elapsed = time.perf_counter() - t0
@@ -106,7 +107,8 @@ def _one(path: Path, root: Path | None, output: Path | None, many: bool, fmt_nam
         written = ["-"]
     else:
         out.parent.mkdir(parents=True, exist_ok=True)
-        written = [str(p) for p in save(motion, out, force=force)]
+        with say.progress(f"{name}: writing {out.name} ({motion.n_frames} frames)"):
+            written = [str(p) for p in save(motion, out, force=force)]
     say.info(f"{name} -> {', '.join(written)}: {motion.n_frames} frames, {elapsed:.3f} s")
     return {"input": name, "outputs": written, "frames": motion.n_frames,
             "decode_ms_per_frame": 1000 * elapsed / max(motion.n_frames, 1)}

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import click
 
-from mocapz.cli.common import cut, echo_json, fmt, frame_slice, range_flags, unit_flag, with_unit
+from mocapz.cli.common import Say, cut, echo_json, fmt, frame_slice, message_flags, range_flags, unit_flag, with_unit
 from mocapz.errors import MocapzError
 
 
@@ -38,8 +38,9 @@ def info(file: Path, as_json: bool) -> None:
 @click.option("-f", "--force", is_flag=True, help="overwrite an existing --plot file")
 @range_flags
 @unit_flag
+@message_flags
 def eval_cmd(original: Path, decoded: Path, as_json: bool, plot: Path | None, force: bool, frames: str | None,
-             start: float | None, end: float | None, unit: str | None) -> None:
+             start: float | None, end: float | None, unit: str | None, quiet: bool, verbose: bool) -> None:
     """Error figures (METRICS.md) of DECODED (motion file or .mcz) against ORIGINAL.
 
     With a frame range, ORIGINAL is cut to it, and DECODED too unless it already has that many frames
@@ -49,23 +50,28 @@ def eval_cmd(original: Path, decoded: Path, as_json: bool, plot: Path | None, fo
     from mocapz.metrics.c3d_extras import describe, extras_errors
     from mocapz.metrics.figures import evaluate, size_figures
 
-    orig = with_unit(load(original), unit)
-    opened = open_motion(decoded)
-    dec = opened.motion
-    s = frame_slice(frames, start, end, orig.frame_rate, orig.n_frames)
-    if s is not None:
-        cut_orig = cut(orig, s)
-        dec = dec if dec.n_frames == cut_orig.n_frames != orig.n_frames else cut(dec, s)
-        orig = cut_orig
-    try:
-        rep = evaluate(orig, dec).as_dict()
-    except MocapzError as exc:
-        raise exc.at(decoded) from None
-    if plot is not None:
-        from mocapz.metrics.plots import plot_errors
+    with Say(quiet=quiet, verbose=verbose).progress("eval") as progress:  # stages on a terminal (stderr)
+        progress.stage(f"reading {original.name}")
+        orig = with_unit(load(original), unit)
+        progress.stage(f"reading {decoded.name}")
+        opened = open_motion(decoded)
+        dec = opened.motion
+        s = frame_slice(frames, start, end, orig.frame_rate, orig.n_frames)
+        if s is not None:
+            cut_orig = cut(orig, s)
+            dec = dec if dec.n_frames == cut_orig.n_frames != orig.n_frames else cut(dec, s)
+            orig = cut_orig
+        progress.stage(f"error figures of {orig.n_frames} frames")
+        try:
+            rep = evaluate(orig, dec).as_dict()
+        except MocapzError as exc:
+            raise exc.at(decoded) from None
+        if plot is not None:
+            from mocapz.metrics.plots import plot_errors
 
-        plot_errors(orig, dec, plot, force=force, compressed_bytes=opened.compressed_bytes)
-        rep["plot"] = str(plot)
+            progress.stage(f"plotting {plot.name}")
+            plot_errors(orig, dec, plot, force=force, compressed_bytes=opened.compressed_bytes)
+            rep["plot"] = str(plot)
     if opened.compressed_bytes is not None:
         rep.update(size_figures(orig, opened.compressed_bytes))
     rest = extras_errors(orig, dec)

@@ -13,8 +13,9 @@ The registry is :func:`mocapz.libraries.library_mode` (``pga``, ``patterns``, ``
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterable, Iterator, Mapping
 from dataclasses import dataclass
+from functools import partial
 from typing import Any
 
 from mocapz.model.header import ClipHeader
@@ -23,11 +24,36 @@ from mocapz.model.motion import AnyMotion, MarkerMotion
 Sections = dict[str, bytes]
 #: called with a clip's frames as soon as that clip is coded (progress displays)
 Done = Callable[[int], None]
-#: ``(clips, checked options, done) -> (the group's shared sections, per clip its own sections, what to record
+#: ``each(fn, items)``: ``fn(item)`` for every item, in order (``fn`` and the items picklable: they may run on
+#: a process pool); the first exception raised is raised
+Each = Callable[[Callable[[Any], Any], Iterable[Any]], Iterator[Any]]
+
+
+def serially(fn: Callable[[Any], Any], items: Iterable[Any]) -> Iterator[Any]:
+    """:data:`Each` in this process."""
+    for item in items:
+        yield fn(item)
+
+
+def _nothing(frames: int) -> None:
+    pass
+
+
+@dataclass(frozen=True)
+class Work:
+    """How a library mode runs its clips: ``each`` codes them (serially, or on the workers of
+    ``compress-db --jobs``: every clip is coded on its own, so the bytes do not depend on where), ``done`` is
+    told each clip's frames once it is coded."""
+
+    each: Each = serially
+    done: Done = _nothing
+
+
+#: ``(clips, checked options, work) -> (the group's shared sections, per clip its own sections, what to record
 #: of the group in the library's index)``
-GroupEncoder = Callable[[list[AnyMotion], dict[str, Any], Done], tuple[Sections, list[Sections], dict[str, Any]]]
-#: ``(the group's stored shared sections, new clips, checked options, done) -> per clip its own sections``
-MemberEncoder = Callable[[Mapping[str, bytes], list[AnyMotion], dict[str, Any], Done], list[Sections]]
+GroupEncoder = Callable[[list[AnyMotion], dict[str, Any], Work], tuple[Sections, list[Sections], dict[str, Any]]]
+#: ``(the group's stored shared sections, new clips, checked options, work) -> per clip its own sections``
+MemberEncoder = Callable[[Mapping[str, bytes], list[AnyMotion], dict[str, Any], Work], list[Sections]]
 #: ``(the group's shared sections, the clip's own sections, its header) -> the clip``
 MemberDecoder = Callable[[Mapping[str, bytes], Sections, ClipHeader], AnyMotion]
 
@@ -62,21 +88,28 @@ def layout_key(motion: AnyMotion) -> tuple:
     return ("skeleton", tuple(sk.names), tuple(sk.channels), tuple(sk.rotation_order), tuple(sk.parents.tolist()))
 
 
+def _quant_alone(options: dict[str, Any], motion: AnyMotion) -> Sections:
+    """A clip's sections as its single quant file's (a picklable job: the codec's encoder is a closure)."""
+    from mocapz.codecs.baselines.quant import ENCODE
+
+    return ENCODE(motion, **options)
+
+
 def quant_mode() -> LibraryMode:
     """quant's library mode: the skeleton shared (by the library), each clip coded as alone."""
-    from mocapz.codecs.baselines.quant import DECODE, ENCODE, VERSION
+    from mocapz.codecs.baselines.quant import DECODE, VERSION
 
-    def encode_into(shared: Mapping[str, bytes], motions: list[AnyMotion], options: dict[str, Any], done: Done
+    def encode_into(shared: Mapping[str, bytes], motions: list[AnyMotion], options: dict[str, Any], work: Work
                     ) -> list[Sections]:
         out = []
-        for m in motions:
-            out.append(ENCODE(m, **options))
-            done(m.n_frames)
+        for m, own in zip(motions, work.each(partial(_quant_alone, options), motions), strict=True):
+            out.append(own)
+            work.done(m.n_frames)
         return out
 
-    def encode_group(motions: list[AnyMotion], options: dict[str, Any], done: Done
+    def encode_group(motions: list[AnyMotion], options: dict[str, Any], work: Work
                      ) -> tuple[Sections, list[Sections], dict[str, Any]]:
-        return {}, encode_into({}, motions, options, done), {}
+        return {}, encode_into({}, motions, options, work), {}
 
     return LibraryMode("quant", VERSION, encode_group, encode_into, lambda shared, own, header: DECODE(own, header),
                        layout_key)

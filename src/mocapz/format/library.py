@@ -83,6 +83,13 @@ def _span_crc(sections: dict[str, bytes], prefix: str) -> int:
     return crc & 0xFFFFFFFF
 
 
+def _skeleton_crc(sections: dict[str, bytes], k: int) -> int | None:
+    """CRC-32 of skeleton ``k``'s section ``s<k>`` alone (not ``s<k>0``... : a name prefix would take them in),
+    or None when it is missing."""
+    key = f"s{k}"
+    return _span_crc({key: sections[key]}, key) if key in sections else None
+
+
 @dataclass
 class Library:
     """A parsed library: its JSON index and its raw (undecoded) sections, in file order."""
@@ -125,7 +132,7 @@ class Library:
     def seal_index(self) -> None:
         """Fill in the checksums of every skeleton, group and clip (done by :meth:`to_bytes`)."""
         for k, entry in enumerate(self.index.get("skeletons", [])):
-            entry["crc"] = _span_crc({f"s{k}": self.sections[f"s{k}"]}, f"s{k}")
+            entry["crc"] = _skeleton_crc(self.sections, k)
         for name, prefix in (("groups", "g"), ("clips", "c")):
             for i, entry in enumerate(self.index[name]):
                 entry["crc"] = _span_crc(self.sections, f"{prefix}{i}.")
@@ -217,7 +224,7 @@ class Library:
         if self.index["groups"][g].get("crc") != _span_crc(self.sections, f"g{g}."):
             out.append("group")
         sk = entry.get("skeleton")
-        if sk is not None and self.index["skeletons"][sk].get("crc") != _span_crc(self.sections, f"s{sk}"):
+        if sk is not None and self.index["skeletons"][sk].get("crc") != _skeleton_crc(self.sections, sk):
             out.append("skeleton")
         return out
 

@@ -20,12 +20,13 @@ from __future__ import annotations
 
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
+from functools import partial
 from typing import Any
 
 import numpy as np
 
 from mocapz.codecs.correction.wrap import corrected, given_settings, native_targets
-from mocapz.codecs.library import Done, LibraryMode
+from mocapz.codecs.library import LibraryMode, Work
 from mocapz.codecs.patterns import VERSION
 from mocapz.codecs.patterns.bodies import code_clips
 from mocapz.codecs.patterns.decode import decode_clip, members_of
@@ -117,7 +118,7 @@ def code_groups(motions: list[AnyMotion], groups: list[Group], settings: Setting
     return out
 
 
-def encode_group(motions: list[AnyMotion], options: dict[str, Any], done: Done
+def encode_group(motions: list[AnyMotion], options: dict[str, Any], work: Work
                  ) -> tuple[dict[str, bytes], list[dict[str, bytes]], dict[str, Any]]:
     """Code one group of clips (same layout) with shared databases, then each clip's correction.
 
@@ -153,15 +154,15 @@ def encode_group(motions: list[AnyMotion], options: dict[str, Any], done: Done
         coded = search("library", motions, settings, targets, fixed, groups[0].prep.addh, run, check)
     else:
         coded = code_groups(motions, groups, settings)[0]
+    coded.decoded.clear()  # every clip's reconstruction: not kept while the clips' corrections are coded (memory)
     own, alone = [], []
-    for m, clip in zip(motions, coded.clips, strict=True):
-        def base(motion: AnyMotion, clip: dict[str, bytes] = clip, **o: Any) -> dict[str, bytes]:
-            return dict(clip)
-
-        own.append(corrected(base, _decoder(coded.shared), "patterns", OPTIONS)[0](m, **options))
-        if not given_settings(options, OPTIONS):  # the correction alone: what the clip costs without databases
-            alone.append(corrected(_no_base, _decoder({}), "patterns", OPTIONS)[0](m, **options))
-        done(m.n_frames)
+    # the correction alone: what the clip costs without databases (unless the user fixed the databases' settings)
+    job = partial(_correct, coded.shared, options, not given_settings(options, OPTIONS))
+    for m, (mine, without) in zip(motions, work.each(job, zip(motions, coded.clips, strict=True)), strict=True):
+        own.append(mine)
+        if without is not None:
+            alone.append(without)
+        work.done(m.n_frames)
     shared = coded.shared
     if alone and _size(alone) <= _size(own) + _size([shared]):
         # the databases cost more than they save (each clip decides for its own base, not for the databases):
@@ -172,6 +173,19 @@ def encode_group(motions: list[AnyMotion], options: dict[str, Any], done: Done
             "settings": {"theta": settings.theta, "ratio": settings.ratio, "tolerance": settings.tol,
                          "bits": settings.bits, "heading": settings.heading}}
     return shared, own, info
+
+
+def _correct(shared: dict[str, bytes], options: dict[str, Any], without: bool,
+             item: tuple[AnyMotion, dict[str, bytes]]) -> tuple[dict[str, bytes], dict[str, bytes] | None]:
+    """A clip's own sections with the correction layer on its databases' coding, and (``without``) coded by the
+    correction alone (a picklable job)."""
+    m, clip = item
+
+    def base(motion: AnyMotion, **o: Any) -> dict[str, bytes]:
+        return dict(clip)
+
+    mine = corrected(base, _decoder(shared), "patterns", OPTIONS)[0](m, **options)
+    return mine, corrected(_no_base, _decoder({}), "patterns", OPTIONS)[0](m, **options) if without else None
 
 
 def _no_base(motion: AnyMotion, **options: Any) -> dict[str, bytes]:

@@ -23,12 +23,13 @@ from __future__ import annotations
 import struct
 from collections.abc import Mapping
 from dataclasses import dataclass
+from functools import partial
 from typing import Any
 
 import numpy as np
 
 from mocapz.codecs.correction.wrap import corrected
-from mocapz.codecs.library import Done, LibraryMode, Sections, layout_key
+from mocapz.codecs.library import LibraryMode, Sections, Work, layout_key
 from mocapz.codecs.pga.codec import DECODE, ENCODE, VERSION, _base_options
 from mocapz.codecs.pga.decode import decode as decode_single
 from mocapz.codecs.pga.decode import with_turns
@@ -183,24 +184,33 @@ def _size(sections: Sections) -> int:
     return sum(len(k) + 2 + len(v) for k, v in sections.items())
 
 
-def encode_into(shared: Mapping[str, bytes], motions: list[AnyMotion], options: dict[str, Any], done: Done
+def encode_into(shared: Mapping[str, bytes], motions: list[AnyMotion], options: dict[str, Any], work: Work
                 ) -> list[Sections]:
     """New clips coded against a group's stored model (or their own, when smaller; targets met by the
     correction layer)."""
+    model = None
+    if "m" in shared:  # else the group keeps no model (its clips' own were smaller)
+        model = SharedModel.from_sections(shared, inner_joints(motions[0].skeleton))  # type: ignore[union-attr]
     out = []
-    for m in motions:
-        if "m" not in shared:  # the group keeps no model (its clips' own were smaller)
-            out.append({**ENCODE(m, **options), OWN: b""})
-        else:
-            p = _prepare(m, options)  # type: ignore[arg-type]
-            model = SharedModel.from_sections(shared, inner_joints(m.skeleton))  # type: ignore[union-attr]
-            out.append(min(_both(p, model, shared, options), key=_size))
-            del p
-        done(m.n_frames)
+    job = partial(_member, model, dict(shared), options)
+    for m, pair in zip(motions, work.each(job, ((m, None) for m in motions)), strict=True):
+        out.append(pair[1] if model is None else min(pair, key=_size))
+        work.done(m.n_frames)
     return out
 
 
-def encode_group(motions: list[AnyMotion], options: dict[str, Any], done: Done
+def _member(model: SharedModel | None, shared: Sections, options: dict[str, Any],
+            item: tuple[Motion, Prepared | None]) -> tuple[Sections, Sections]:
+    """One clip's two codings (:func:`_both`; with no model, its own twice), from its analysis when given
+    (a picklable job)."""
+    motion, p = item
+    if model is None:
+        own = {**ENCODE(motion, **options), OWN: b""}
+        return own, own
+    return _both(p if p is not None else _prepare(motion, options), model, shared, options)
+
+
+def encode_group(motions: list[AnyMotion], options: dict[str, Any], work: Work
                  ) -> tuple[Sections, list[Sections], dict[str, Any]]:
     """A group's shared model, its clips' own sections and its index entry (k, bits).
 
@@ -225,11 +235,10 @@ def encode_group(motions: list[AnyMotion], options: dict[str, Any], done: Done
     model = fit_rotations(rots, inner_joints(motions[0].skeleton), options)  # type: ignore[union-attr]
     shared = model.sections()
     pairs = []
-    for i, m in enumerate(motions):
-        p = held.pop(i, None) or _prepare(m, options)  # type: ignore[arg-type]
-        pairs.append(_both(p, model, shared, options))
-        del p
-        done(m.n_frames)
+    items = ((m, held.pop(i, None)) for i, m in enumerate(motions))  # an analysis let go once sent
+    for m, pair in zip(motions, work.each(partial(_member, model, shared, options), items), strict=True):
+        pairs.append(pair)
+        work.done(m.n_frames)
     own = [min(pair, key=_size) for pair in pairs]
     if sum(map(_size, own)) + _size(shared) >= sum(_size(pair[1]) for pair in pairs):
         # the model is worth less than it costs: no shared model, every clip with its own
