@@ -415,3 +415,50 @@ def test_library_coded_on_two_workers_has_the_same_bytes(runs, pga_lib) -> None:
     for codec in ("quant", "patterns"):
         assert compress_library(short, codec=codec, max_error="2cm", jobs=2) == \
             compress_library(short, codec=codec, max_error="2cm"), codec
+
+
+@pytest.mark.parametrize("where, value", [
+    ("clip", True), ("clip.name", None), ("clip.group", 7), ("clip.group", "0"), ("clip.skeleton", 5),
+    ("clip.frames", -1), ("clip.frame_rate", 0), ("clip.crc", None), ("group", []), ("skeletons", {}),
+    ("skeleton", []), ("codec", 3), ("clip.name", "09_06")])
+def test_a_hostile_library_index_is_one_error_naming_the_file(runs, tmp_path, where, value) -> None:
+    """An index written with a valid checksum but a clip that is not an object, a group or skeleton number past
+    the lists, a name twice...: every reader (API and CLI) raises FormatError naming the file, no KeyError or
+    TypeError (the whole file's checksum is recomputed: a faulty writer, not a flipped bit)."""
+    import json
+    import struct
+    import zlib
+
+    import zstandard
+
+    from mocapz.format.container import write_sections
+    from mocapz.format.entropy import write_uvarint
+    from mocapz.format.library import FORMAT_VERSION, MAGIC
+    from mocapz.libraries import extract_clip, verify_library
+
+    good = Library.from_bytes(compress_library([m.slice(0, 30) for m in runs[:2]], codec="quant", max_error="2cm"))
+    index = json.loads(json.dumps(good.index))
+    kind, _, field = where.partition(".")
+    if kind == "clip":
+        if field:
+            index["clips"][1][field] = value
+        else:
+            index["clips"][1] = value
+    elif kind == "group":
+        index["groups"][0] = value
+    elif kind == "skeleton":
+        index["skeletons"][0] = value
+    else:
+        index[kind] = value
+    head = zstandard.ZstdCompressor().compress(json.dumps(index).encode())
+    body = MAGIC + bytes([FORMAT_VERSION]) + write_uvarint(len(head)) + head + write_sections(good.sections)
+    path = tmp_path / "hostile.mczdb"
+    path.write_bytes(body + struct.pack("<I", zlib.crc32(body) & 0xFFFFFFFF))
+    for read in (lambda: read_clip(path.read_bytes(), "09_01", path), lambda: extract_clip(path, "09_01"),
+                 lambda: verify_library(path.read_bytes(), path), lambda: describe_library(path)):
+        with pytest.raises(FormatError, match="hostile.mczdb.*bad index"):
+            read()
+    for args in (["info", str(path)], ["verify", str(path)], ["decompress", str(path), "--clip", "09_01", "-o",
+                                                                str(tmp_path / "o.bvh")]):
+        res = CliRunner().invoke(cli, args)
+        assert isinstance(res.exception, FormatError) and "bad index" in str(res.exception), (args, res.exception)

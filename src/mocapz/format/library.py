@@ -46,6 +46,7 @@ from mocapz.errors import FormatError, MocapzError
 from mocapz.format.container import read_sections, seal, write_sections
 from mocapz.format.entropy import read_uvarint, safe_zstd_decompress, write_uvarint
 from mocapz.format.layout import decode_member_header, encode_member_layout, encode_skeleton
+from mocapz.format.library_index import check_index
 from mocapz.model.header import ClipHeader
 from mocapz.model.motion import AnyMotion, Motion
 
@@ -263,9 +264,7 @@ def _head(data: bytes | memoryview) -> tuple[int, dict[str, Any], int]:
         index = json.loads(safe_zstd_decompress(bytes(data[pos : pos + n]), 1 << 26, "library index"))
     except (ValueError, UnicodeDecodeError) as exc:
         raise FormatError(None, f"corrupted library index ({exc})") from None
-    if not isinstance(index, dict) or not isinstance(index.get("clips"), list) \
-            or not isinstance(index.get("groups"), list):
-        raise FormatError(None, "corrupted library (bad index)")
+    check_index(index, version)
     return version, index, pos + n
 
 
