@@ -96,16 +96,11 @@ def compress_library(motions: list[AnyMotion], codec: str = DEFAULT_CODEC, progr
     return lib.to_bytes()
 
 
-def _nothing(frames: int) -> None:
-    pass
-
-
 @contextlib.contextmanager
 def _work(progress: Done | None, jobs: int, scheduler: str | None, clips: int) -> Iterator[Work]:
     """How the clips are coded: in this process, or on a pool of ``jobs`` workers (or a Dask scheduler)."""
-    done = progress or _nothing
     if jobs == 1 and scheduler is None:
-        yield Work(done=done)
+        yield Work() if progress is None else Work(done=progress)
         return
     from mocapz.parallel.pool import Pool
 
@@ -117,7 +112,7 @@ def _work(progress: Done | None, jobs: int, scheduler: str | None, clips: int) -
                     raise outcome.error
                 yield outcome.value
 
-        yield Work(each, done)
+        yield Work(each) if progress is None else Work(each, progress)
 
 
 def _add(lib: Library, mode: LibraryMode, options: dict[str, Any], motions: list[AnyMotion], names: list[str],
@@ -257,7 +252,8 @@ def verify_library(data: bytes, path: str | os.PathLike[str] | None = None, deco
             except MocapzError as exc:
                 entry.update(ok=False, error=str(exc))
         clips.append(entry)
-        (progress or _nothing)(int(lib.index["clips"][j].get("frames") or 0))
+        if progress is not None:
+            progress(lib.index["clips"][j]["frames"])
     return {"file": None if path is None else str(path), "format_version": lib.version, "file_checksum": file_ok,
             "per_clip_checksums": lib.version >= 2, "ok": file_ok and all(c["ok"] for c in clips), "clips": clips}
 

@@ -161,7 +161,7 @@ def verify(library: Path, decode: bool, as_json: bool, quiet: bool, verbose: boo
         raise FormatError(library, "no such file")
     say = Say(quiet=as_json or quiet, verbose=verbose)
     data = library.read_bytes()
-    total = sum(int(c.get("frames") or 0) for c in Library.from_bytes(data, library, check=False).index["clips"])
+    total = sum(c["frames"] for c in Library.from_bytes(data, library, check=False).index["clips"])  # checked
     with say.progress(f"verify: {'decoding' if decode else 'checking'} {library.name}, frames",
                       total=total) as advance:
         report = verify_library(data, library, decode=decode, progress=advance)

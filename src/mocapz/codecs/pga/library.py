@@ -102,7 +102,7 @@ def fit_shared(preps: list[Prepared], options: dict[str, Any]) -> SharedModel:
 
 def fit_rotations(rots: list[np.ndarray], inner: np.ndarray, options: dict[str, Any]) -> SharedModel:
     """Fit and quantise the pose model of a group's inner-joint rotations (per clip ``(frames, n, 3, 3)``:
-    its kept frames, or the sample of them :func:`_fit_sample` takes)."""
+    its kept frames, or every s-th of them: :func:`encode_group`)."""
     rot = np.concatenate(rots) if rots else np.zeros((0, len(inner), 3, 3))
     del rots[:]  # the clips' arrays are not kept beside their concatenation (peak memory)
     if not len(rot):
