@@ -18,6 +18,13 @@ import numpy as np
 
 from mocapz import _jit
 from mocapz.errors import FormatError
+from mocapz.format.entropy_costs import (  # noqa: F401  (re-exported: the scale search's costs)
+    HIST_VALUES,
+    _candidate_bits,
+    _histogram,
+    _laplace_bits,
+    code_bits,
+)
 from mocapz.format.planes import (  # noqa: F401  (re-exported: the integer streams' public helpers)
     MAX_COUNT,
     pack_uint64,
@@ -57,7 +64,6 @@ QUARTER_TOP = 127
 DELTA_SCALES = (0.5, 1.0, 2.0, 4.0, 8.0, 16.0)  # Laplace scales of the scale codes' differences (one byte picks)
 CHUNK_VALUES = 1 << 16  # values range coded per call of the coder (its per-value arrays: peak memory)
 LAZY_VALUES = 1 << 20  # values decoded in one stream from which numba is loaded for the range decoder
-HIST_VALUES = 64  # a scale search over blocks whose absolute values are all below this works on their histogram
 
 
 _DELTA_MODEL = constriction.stream.model.QuantizedLaplace(-DELTA_LIMIT, DELTA_LIMIT) if HAVE_CONSTRICTION else None
@@ -92,44 +98,9 @@ def _scale_codes(values: np.ndarray, steps: int, bias: int, offsets: range, top:
             q[b] = np.clip(guess, 0, top)
             continue
         codes = np.clip(guess[None, :] + np.asarray(offsets, dtype=np.float64)[:, None], 0, top)  # (offsets, cols)
-        cost = _candidate_bits(_histogram(blk), 2.0 ** ((codes - float(bias)) / steps))
+        cost = code_bits(_histogram(blk), codes, steps, bias)
         q[b] = codes[np.argmin(cost, axis=0), np.arange(cols)]  # the first of the cheapest, in offsets' order
     return q
-
-
-def _histogram(a: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
-    """``(values (k, 1), counts (k, columns))``: how often each value ``0 .. k - 1`` occurs in each column of the
-    absolute values ``a`` ``(rows, columns)`` when they are all below :data:`HIST_VALUES` (a block's costs under
-    every candidate scale then come from a few values, not from every row); else ``(a, None)``."""
-    cols = a.shape[1]
-    top = int(a.max()) + 1 if a.size else 1
-    if top > HIST_VALUES:
-        return a, None
-    at = a.astype(np.int64) * cols + np.arange(cols)
-    counts = np.bincount(at.ravel(), minlength=top * cols).reshape(top, cols).astype(np.float64)
-    return np.arange(top, dtype=np.float64)[:, None], counts
-
-
-def _candidate_bits(hist: tuple[np.ndarray, np.ndarray | None], scales: np.ndarray) -> np.ndarray:
-    """:func:`_laplace_bits` of a block (:func:`_histogram`) under each row of ``scales`` ``(candidates, columns)``:
-    all at once from a histogram, one candidate at a time from the values themselves (a block of large values:
-    every candidate's array of them at once would be many times the block)."""
-    if hist[1] is not None:
-        return _laplace_bits(*hist, scales)
-    return np.stack([_laplace_bits(*hist, s) for s in scales])
-
-
-def _laplace_bits(a: np.ndarray, counts: np.ndarray | None, scale: np.ndarray) -> np.ndarray:
-    """Bits ``(columns,)`` the absolute values ``a`` ``(rows, columns)`` cost under a quantised Laplace model of
-    scale ``scale`` ``(columns,)`` (each probability at least 2**-24, as the coder's); with ``counts``, ``a``
-    holds distinct values ``(k, 1)`` occurring ``counts`` ``(k, columns)`` times (:func:`_histogram`). Scales
-    ``(candidates, columns)`` give the bits ``(candidates, columns)`` of each candidate (the same numbers)."""
-    s = scale[..., None, :]
-    zero = -np.expm1(-0.5 / s)
-    other = 0.5 * np.exp(-(np.maximum(a, 0.5) - 0.5) / s) * -np.expm1(-1.0 / s)
-    p = np.where(a == 0, zero, other)
-    bits = -np.log2(np.maximum(p, 2.0**-24))
-    return bits.sum(axis=-2) if counts is None else (bits * counts).sum(axis=-2)
 
 
 def _block_scale(q: np.ndarray, steps: int = SCALE_STEPS, bias: int = 64) -> np.ndarray:

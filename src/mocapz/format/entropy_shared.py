@@ -50,7 +50,7 @@ def _codes(values: np.ndarray, gid: np.ndarray, n: int) -> np.ndarray:
         mean = np.bincount(gid, weights=blk.mean(axis=0), minlength=n) / np.maximum(counts, 1)
         guess = np.round(np.log2(np.maximum(mean, 2.0 ** -6)) * 2) + HALF_BIAS
         codes = np.clip(guess[None, :] + np.asarray(OFFSETS, dtype=np.float64)[:, None], 0, HALF_TOP)  # (offsets, n)
-        per_col = E._candidate_bits(E._histogram(blk), 2.0 ** ((codes[:, gid] - float(HALF_BIAS)) / 2))
+        per_col = E.code_bits(E._histogram(blk), codes[:, gid], 2, HALF_BIAS)
         cost = np.stack([np.bincount(gid, weights=c, minlength=n) for c in per_col])
         q[b] = codes[np.argmin(cost, axis=0), np.arange(n)]  # the first of the cheapest, in OFFSETS' order
     return q
