@@ -15,7 +15,9 @@ the default and the 1-s file: the full decode and ``decompress(data, frames=slic
 ``a`` spread evenly from the first frame to the last 20, timed in interleaved rounds (the full decode, then
 the 5 seeks; at least ``--repeat`` rounds, more while they fill 0.5 s, at most 20), each call's best kept; the
 seek is the median of the 5, reported as frames/s of the 20 frames and as a percentage of the full decode of
-the same file. Block cost: the size of the 1-s and the 4-s file over the one-block file, minus 1, in %. That
+the same file; the same 5 ranges are also read from a reader opened once (``mocapz.open(data)[a:a + 20]``: the
+file's container, checksum, layout and blocks read before the rounds), in the same rounds (default blocks: "% with
+an open reader"). Block cost: the size of the 1-s and the 4-s file over the one-block file, minus 1, in %. That
 process is stopped after ``--time-limit * (4 * --repeat + 6) + 60`` seconds.
 
 Usage::
@@ -140,32 +142,39 @@ def seek_worker(motion: Any, codec: str, opts: dict[str, Any], repeat: int) -> d
             length = min(SEEK_FRAMES, n)
             mocapz.decompress(data, frames=slice(0, length))  # untimed: lazy imports, caches
             starts = seek_starts(n, length)
-            decode_s, times, rounds = seek_timings(data, starts, length, repeat)
+            decode_s, times, opened, rounds = seek_timings(data, starts, length, repeat)
             rec.update(decode_s=decode_s, seek_frames=length, seek_starts=starts, seek_all_s=times,
-                       seek_s=statistics.median(times), rounds=rounds)
+                       seek_s=statistics.median(times), reader_all_s=opened,
+                       reader_s=statistics.median(opened), rounds=rounds)
         out[label] = rec
     return out
 
 
-def seek_timings(data: bytes, starts: list[int], length: int, repeat: int) -> tuple[float, list[float], int]:
-    """The full decode of ``data`` and the decode of ``length`` frames at every start, timed in rounds (each
-    round: the full decode, then every start), at least ``repeat`` rounds and more while they fill
-    ``ROUNDS_FILL_S`` (at most ``MAX_ROUNDS``): ``(best full decode, best of every start, rounds)`` in seconds.
-    Interleaved so that a slow spell of a shared machine weighs on all of them alike."""
+def seek_timings(data: bytes, starts: list[int], length: int, repeat: int
+                 ) -> tuple[float, list[float], list[float], int]:
+    """The full decode of ``data`` and the decode of ``length`` frames at every start, by ``decompress(frames=)``
+    and by a reader opened once (``mocapz.open(data)[a:b]``, the file read and checked before the rounds), timed
+    in rounds (each round: the full decode, then every start each way), at least ``repeat`` rounds and more while
+    they fill ``ROUNDS_FILL_S`` (at most ``MAX_ROUNDS``): ``(best full decode, best of every start, best of every
+    start with the reader, rounds)`` in seconds. Interleaved so that a slow spell of a shared machine weighs on
+    all of them alike."""
     import mocapz  # noqa: PLC0415
 
+    reader = mocapz.open(data)
     ranges = [None, *(slice(a, a + length) for a in starts)]
-    best = [float("inf")] * len(ranges)
+    calls = [(lambda f=f: mocapz.decompress(data, frames=f)) for f in ranges] \
+        + [(lambda f=f: reader[f]) for f in ranges[1:]]
+    best = [float("inf")] * len(calls)
     rounds, t0 = 0, time.perf_counter()
     while rounds < repeat or (rounds < MAX_ROUNDS and time.perf_counter() - t0 < ROUNDS_FILL_S):
-        for i, frames in enumerate(ranges):
+        for i, call in enumerate(calls):
             t = time.perf_counter()
-            part = mocapz.decompress(data, frames=frames)
+            part = call()
             best[i] = min(best[i], time.perf_counter() - t)
-            if frames is not None and part.n_frames != length:
-                raise RuntimeError(f"decompress(frames={frames.start}:{frames.stop}) gave {part.n_frames} frames")
+            if i and part.n_frames != length:
+                raise RuntimeError(f"a seek of {length} frames gave {part.n_frames} frames")
         rounds += 1
-    return best[0], best[1:], rounds
+    return best[0], best[1:len(ranges)], best[len(ranges):], rounds
 
 
 def _rss_mb() -> float:
@@ -350,10 +359,11 @@ def seek_fps(m: dict[str, Any], label: str) -> float | None:
     return _fps(rec.get("seek_frames"), rec.get("seek_s"))
 
 
-def seek_pct(m: dict[str, Any], label: str) -> float | None:
-    """The seek's time as a percentage of the full decode of the same file."""
+def seek_pct(m: dict[str, Any], label: str, key: str = "seek_s") -> float | None:
+    """The seek's time (``key``: by ``decompress(frames=)``, or ``reader_s``: by an open reader) as a percentage
+    of the full decode of the same file."""
     rec = m.get(label) or {}
-    return 100.0 * rec["seek_s"] / rec["decode_s"] if rec.get("seek_s") and rec.get("decode_s") else None
+    return 100.0 * rec[key] / rec["decode_s"] if rec.get(key) and rec.get("decode_s") else None
 
 
 def block_cost(m: dict[str, Any], label: str) -> float | None:
@@ -367,7 +377,7 @@ def seek_cells(row: dict[str, Any], ref: dict[str, Any] | None) -> list[str]:
     m = row["seek"]
     why = _failed(m)
     if why:
-        return [why] * 7
+        return [why] * 8
     cells = [_blocks_text(m["default"], m["frame_rate"])]
     for label in SEEKED:
         fps = seek_fps(m, label)
@@ -379,6 +389,9 @@ def seek_cells(row: dict[str, Any], ref: dict[str, Any] | None) -> list[str]:
             text += " (one block)"
         pct = seek_pct(m, label)
         cells += [text, _pct(pct) if pct is not None else "-"]
+        if label == "default":
+            opened = seek_pct(m, label, "reader_s")
+            cells.append(_pct(opened) if opened is not None else "-")
     for label in ("1s", "4s"):
         cost = block_cost(m, label)
         text = f"{cost:+.1f} %" if cost is not None else "-"
@@ -400,7 +413,8 @@ def summarise_seek(rows: list[dict[str, Any]], codecs: list[str]) -> list[dict[s
         for label in BLOCKS:
             recs = [r["seek"][label] for r in done]
             a: dict[str, Any] = {k: sum(rec[k] for rec in recs)
-                                 for k in ("bytes", "blocks", "decode_s", "seek_s", "seek_frames") if k in recs[0]}
+                                 for k in ("bytes", "blocks", "decode_s", "seek_s", "reader_s", "seek_frames")
+                                 if k in recs[0]}
             lengths = sorted({round(rec["block_frames"] / r["seek"]["frame_rate"], 3)
                               for r, rec in zip(done, recs, strict=True) if rec["blocks"] > 1})
             a["one_block"] = not lengths
@@ -414,7 +428,8 @@ def summarise_seek(rows: list[dict[str, Any]], codecs: list[str]) -> list[dict[s
 
 def seek_table(rows: list[dict[str, Any]], with_clip: bool) -> list[str]:
     head = ("| clip " if with_clip else "") + "| codec | frames | default blocks | seek 20 frames, default blocks " \
-        "| % of a full decode | seek 20 frames, 1-s blocks | % of a full decode | size, 1-s blocks | size, 4-s blocks |"
+        "| % of a full decode | % with an open reader | seek 20 frames, 1-s blocks | % of a full decode " \
+        "| size, 1-s blocks | size, 4-s blocks |"
     lines = [head, "|" + "---|" * (head.count("|") - 1)]
     refs = {r["clip"]: r for r in rows if r["codec"] == "lossless" and _failed(r["seek"]) is None}
     for r in rows:

@@ -48,11 +48,14 @@ def test_seek_worker(tmp_path: Path, codec: str, default_blocks: int) -> None:
         pct = speed.seek_pct(out, label)
         assert pct is not None and math.isfinite(pct) and pct > 0
         assert speed.seek_fps(out, label) == pytest.approx(20 / rec["seek_s"])
+        assert len(rec["reader_all_s"]) == 5 and rec["reader_s"] == sorted(rec["reader_all_s"])[2] > 0
+        opened = speed.seek_pct(out, label, "reader_s")
+        assert opened is not None and 0 < opened
     cost = speed.block_cost(out, "1s")
     assert cost is not None and math.isfinite(cost) and abs(cost) < 50
     assert out["4s"]["bytes"] == out["one"]["bytes"] and speed.block_cost(out, "4s") == 0.0  # both one block
     cells = speed.seek_cells({"seek": out}, None)
-    assert len(cells) == 7 and cells[0] == (f"{128 / 120:g} s (3 blocks)" if default_blocks == 3 else "one block")
+    assert len(cells) == 8 and cells[0] == (f"{128 / 120:g} s (3 blocks)" if default_blocks == 3 else "one block")
     assert cells[-1] == "+0.0 % (one block)"
 
 
@@ -66,7 +69,7 @@ def _seek(seek_s: float, decode_s: float, sizes: tuple[int, int, int, int], bloc
     recs = {label: {"bytes": b, "encode_s": 0.1, "blocks": blocks if label in ("default", "1s") else 1,
                     "block_frames": 120} for label, b in zip(speed.BLOCKS, sizes, strict=True)}
     for label in speed.SEEKED:
-        recs[label].update(seek_frames=20, seek_s=seek_s, decode_s=decode_s)
+        recs[label].update(seek_frames=20, seek_s=seek_s, reader_s=seek_s / 2, decode_s=decode_s)
     return {"frames": 1000, "frame_rate": 120.0, **recs}
 
 
@@ -81,10 +84,11 @@ def test_sums_over_clips() -> None:
     assert speed.seek_pct(agg["seek"], "default") == pytest.approx(4.0)
     assert speed.block_cost(agg["seek"], "1s") == pytest.approx(0.0)
     lines = speed.seek_table([agg, *rows], with_clip=True)
-    assert lines[2] == ("| CMU clips | lossless | 2,000 | 1 s (16 blocks) | 1,000 x1.00 | 4.0 % | 1,000 x1.00 | "
-                        "4.0 % | +0.0 % | +0.0 % (one block) |")
-    assert lines[3].startswith("| a | lossless | 1,000 | 1 s (8 blocks) | 2,000 x1.00 | 2.0 % |")
-    assert lines[5] == "| c | lossless | 1,000 | " + " | ".join(["over 300 s"] * 7) + " |"
+    assert speed.seek_pct(agg["seek"], "default", "reader_s") == pytest.approx(2.0)
+    assert lines[2] == ("| CMU clips | lossless | 2,000 | 1 s (16 blocks) | 1,000 x1.00 | 4.0 % | 2.0 % | "
+                        "1,000 x1.00 | 4.0 % | +0.0 % | +0.0 % (one block) |")
+    assert lines[3].startswith("| a | lossless | 1,000 | 1 s (8 blocks) | 2,000 x1.00 | 2.0 % | 1.0 % |")
+    assert lines[5] == "| c | lossless | 1,000 | " + " | ".join(["over 300 s"] * 8) + " |"
 
 
 def test_one_clip_run(tmp_path: Path) -> None:

@@ -30,10 +30,11 @@ from mocapz.libraries import (  # noqa: E402
 from mocapz.metrics.figures import evaluate  # noqa: E402
 from mocapz.model.motion import MarkerMotion, Motion  # noqa: E402
 from mocapz.model.skeleton import Skeleton  # noqa: E402
+from mocapz.reader import Reader, open  # noqa: E402, A004
 from mocapz.stream import StreamDecoder, StreamEncoder  # noqa: E402
 
 __all__ = [
-    "FormatError", "MarkerMotion", "MocapzError", "Motion", "OptionError", "Skeleton", "StreamDecoder",
+    "FormatError", "MarkerMotion", "MocapzError", "Motion", "OptionError", "Reader", "Skeleton", "StreamDecoder",
     "StreamEncoder", "TargetError", "__version__", "append_library", "compress", "compress_library", "decompress",
-    "evaluate", "extract_clip", "list_clips", "load", "read_clip", "save", "verify_library",
+    "evaluate", "extract_clip", "list_clips", "load", "open", "read_clip", "save", "verify_library",
 ]

@@ -4,8 +4,6 @@
 from __future__ import annotations
 
 from collections.abc import Callable, Iterator
-from contextlib import contextmanager
-from dataclasses import replace
 from os import PathLike
 from pathlib import Path
 from typing import Any
@@ -17,12 +15,20 @@ from mocapz.codecs import CodecInfo, get_codec
 from mocapz.errors import FormatError, OptionError
 from mocapz.format import blocks
 from mocapz.format.container import Container
-from mocapz.format.extras import PREFIX, attach, decode_extras, sections_of, split_sections
+from mocapz.format.extras import PREFIX, sections_of, split_sections
 from mocapz.format.extras_precision import ExtrasPrecision
-from mocapz.format.layout import decode_header, encode_layout
-from mocapz.format.stream import Stream, is_stream, read_stream
-from mocapz.model.header import ClipHeader
+from mocapz.format.layout import encode_layout
+from mocapz.format.stream import is_stream
 from mocapz.model.motion import AnyMotion, MarkerMotion, Motion
+from mocapz.reader import (  # noqa: F401  (re-exported: the readers' helpers)
+    Reader,
+    check_codec_version,
+    codec_of,
+    decoder_errors,
+    read_container,
+    read_stream_header,
+    with_extras,
+)
 
 
 def compress(motion: AnyMotion | str | PathLike[str], codec: str = "lossless", *,
@@ -75,95 +81,13 @@ def compress_checked(motion: AnyMotion, info: CodecInfo, checked: dict[str, Any]
     return Container(info.name, info.version, encode_layout(motion), sections).to_bytes()
 
 
-def read_container(data: bytes, path: str | Path | None = None) -> tuple[Container, ClipHeader]:
-    """Parse container bytes and their layout header (errors name ``path``). A stream (format version 3)
-    comes back as a container of its blocks' sections (``"{block}:{name}"``) and a header of all its frames."""
-    if is_stream(data):
-        stream, header = read_stream_header(data, path)
-        sections = {f"{i}:{k}": v for i, b in enumerate(stream.blocks) for k, v in b.items()}
-        return Container(stream.codec, stream.codec_version, stream.layout, {**sections, **stream.sections}), header
-    box = Container.from_bytes(data, path)
-    try:
-        header = decode_header(box.layout)
-    except FormatError as exc:
-        raise FormatError(path, exc.problem) from None
-    return box, header
-
-
 def decompress(data: bytes, path: str | Path | None = None, *,
                frames: slice | range | tuple[int, int] | None = None) -> AnyMotion:
     """Decode the bytes of a ``.mcz`` file back into a motion, or only ``frames`` of it (a slice: the values of
     those frames in a full decode; a file coded in blocks decodes only the blocks they lie in)."""
     if is_stream(data):
         return decode_stream(data, path, frames)
-    box, header = read_container(data, path)
-    start, stop = blocking.frame_range(frames, header.frames)
-    info = codec_of(box.codec, box.codec_version, path)
-    codec_sections, extra_sections = split_sections(box.sections)
-    with decoder_errors(box.codec, path):
-        if box.blocked:
-            motion, shared = blocking.decode(info.decode, codec_sections, header, start, stop)
-            if shared:
-                raise FormatError(None, f"corrupted .mcz file (sections {sorted(shared)} outside its blocks)")
-            return _with_extras(motion, extra_sections, header, start, stop)
-        if (start, stop) != (0, header.frames) and info.decode_window is not None:
-            part = info.decode_window(codec_sections, header, start, stop)
-            if part is not None:  # only what the frames need was decoded
-                return _with_extras(part, extra_sections, header, start, stop)
-        motion = info.decode(codec_sections, header)
-        if (start, stop) == (0, header.frames):
-            return attach(motion, extra_sections)
-        return _with_extras(motion.slice(start, stop), extra_sections, header, start, stop)
-
-
-def codec_of(name: str, version: int, path: str | Path | None) -> CodecInfo:
-    """The registered codec a file names, at the version it was written with (FormatError otherwise)."""
-    try:
-        info = get_codec(name)
-    except OptionError:
-        raise FormatError(path, f"written by unknown codec {name!r}") from None
-    check_codec_version(info, version, path)
-    return info
-
-
-def check_codec_version(info: CodecInfo, version: int, path: str | Path | None) -> None:
-    if version != info.version:
-        raise FormatError(path, f"codec {info.name!r} version {version} is not supported "
-                                f"(this mocapz has version {info.version})")
-
-
-@contextmanager
-def decoder_errors(codec: str, path: str | Path | None) -> Iterator[None]:
-    """A decoder's errors as one FormatError naming the file."""
-    try:
-        yield
-    except FormatError as exc:
-        raise FormatError(path, exc.problem) from None
-    except (ValueError, IndexError, KeyError, TypeError, OverflowError) as exc:
-        # the checksum held, so this is damaged content written with a valid CRC, or a decoder bug
-        raise FormatError(path, f"the {codec} decoder failed ({type(exc).__name__}: {exc}): the file's "
-                                f"content is damaged, or this is a mocapz bug (please report it)") from None
-
-
-def _with_extras(motion: AnyMotion, sections: dict[str, bytes], header: ClipHeader, start: int,
-                 stop: int) -> AnyMotion:
-    """Frames ``[start, stop)`` of the clip with its C3D extras of those frames (only the blocks holding them
-    decoded)."""
-    if not sections:
-        return motion
-    if not isinstance(motion, MarkerMotion):
-        raise FormatError(None, "corrupted .mcz file (C3D sections in a skeletal clip)")
-    motion.metadata["c3d"] = decode_extras(sections, header.frames, len(header.labels), start, stop)
-    return motion
-
-
-def read_stream_header(data: bytes, path: str | Path | None = None) -> tuple[Stream, ClipHeader]:
-    """A complete stream and its layout header, with the frames of all its blocks (errors name ``path``)."""
-    try:
-        stream = read_stream(data)
-        return stream, replace(decode_header(stream.layout), frames=stream.frames)
-    except FormatError as exc:
-        raise FormatError(path, exc.problem) from None
+    return Reader(data, path).read(frames)
 
 
 def decode_stream(data: bytes, path: str | Path | None = None,
