@@ -84,26 +84,9 @@ def compress_checked(motion: AnyMotion, info: CodecInfo, checked: dict[str, Any]
 def decompress(data: bytes, path: str | Path | None = None, *,
                frames: slice | range | tuple[int, int] | None = None) -> AnyMotion:
     """Decode the bytes of a ``.mcz`` file back into a motion, or only ``frames`` of it (a slice: the values of
-    those frames in a full decode; a file coded in blocks decodes only the blocks they lie in)."""
-    if is_stream(data):
-        return decode_stream(data, path, frames)
+    those frames in a full decode; a file coded in blocks decodes only the blocks they lie in): a
+    :class:`~mocapz.reader.Reader` used once."""
     return Reader(data, path).read(frames)
-
-
-def decode_stream(data: bytes, path: str | Path | None = None,
-                  frames: slice | range | tuple[int, int] | None = None) -> AnyMotion:
-    """A complete stream's motion (or ``frames`` of it, decoding only the blocks they lie in)."""
-    stream, header = read_stream_header(data, path)
-    info = codec_of(stream.codec, stream.codec_version, path)
-    if stream.sections:
-        raise FormatError(path, f"corrupted streamed .mcz (unknown clip-wide sections {sorted(stream.sections)})")
-    if not stream.blocks:
-        return header.motion(np.zeros(header.value_shape))
-    start, stop = blocking.frame_range(frames, header.frames)
-    ends = np.cumsum(stream.block_frames).tolist()
-    spans = list(zip([0, *ends[:-1]], ends, strict=True))
-    with decoder_errors(stream.codec, path):
-        return blocking.decode_spans(info.decode, stream.blocks, spans, header, start, stop)
 
 
 def iter_decompress(data: bytes, path: str | Path | None = None, *,
