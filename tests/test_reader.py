@@ -83,3 +83,12 @@ def test_a_path_is_read_once_and_errors_name_it(tmp_path, files: dict[str, bytes
         mocapz.open(files["quant (seekable)"])[5]
     with pytest.raises(OptionError, match="select no frame"):
         mocapz.open(files["quant (seekable)"]).read((30, 10))
+
+
+@pytest.mark.parametrize("name", ["lossless (blocks)", "quant (seekable)", "stream"])
+def test_blocks_one_by_one_join_to_the_range(files: dict[str, bytes], name: str) -> None:
+    reader = mocapz.open(files[name])
+    pieces = list(reader.iter_blocks(slice(130, 560)))
+    assert all(total == 430 for total, _ in pieces) and (len(pieces) > 1) == (name != "quant (seekable)")
+    joined = np.concatenate([_values(m) for _, m in pieces])
+    assert np.array_equal(joined, _values(reader[130:560]), equal_nan=True)

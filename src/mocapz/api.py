@@ -8,17 +8,13 @@ from os import PathLike
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 from mocapz import blocking
 from mocapz.codecs import CodecInfo, get_codec
 from mocapz.errors import FormatError, OptionError
-from mocapz.format import blocks
 from mocapz.format.container import Container
-from mocapz.format.extras import PREFIX, sections_of, split_sections
+from mocapz.format.extras import PREFIX, sections_of
 from mocapz.format.extras_precision import ExtrasPrecision
 from mocapz.format.layout import encode_layout
-from mocapz.format.stream import is_stream
 from mocapz.model.motion import AnyMotion, MarkerMotion, Motion
 from mocapz.reader import (  # noqa: F401  (re-exported: the readers' helpers)
     Reader,
@@ -94,27 +90,4 @@ def iter_decompress(data: bytes, path: str | Path | None = None, *,
     """The frames of a ``.mcz`` (or ``frames`` of it) block by block, as each is decoded: ``(the number of frames
     selected in all, the next block's motion)``; a clip in one block comes in one piece. C3D extras are not
     attached (use :func:`decompress`)."""
-    if is_stream(data):
-        stream, header = read_stream_header(data, path)
-        name, version = stream.codec, stream.codec_version
-        parts, lengths = stream.blocks, stream.block_frames
-    else:
-        box, header = read_container(data, path)
-        if not box.blocked:
-            start, stop = blocking.frame_range(frames, header.frames)
-            yield stop - start, decompress(data, path, frames=frames)
-            return
-        name, version = box.codec, box.codec_version
-        index, parts, _ = blocks.unpack(split_sections(box.sections)[0], header.frames)
-        lengths = [b - a for a, b in (index.bounds(i) for i in range(index.count))]
-    info = codec_of(name, version, path)
-    start, stop = blocking.frame_range(frames, header.frames)
-    ends = np.cumsum(lengths).tolist()
-    pieces = blocking.iter_spans(info.decode, parts, list(zip([0, *ends[:-1]], ends, strict=True)), header, start,
-                                 stop)
-    while True:
-        with decoder_errors(name, path):
-            piece = next(pieces, None)
-        if piece is None:
-            return
-        yield stop - start, piece
+    yield from Reader(data, path).iter_blocks(frames)

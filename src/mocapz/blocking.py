@@ -74,15 +74,6 @@ def encode(encode_one: Callable[..., Sections], motion: AnyMotion, options: dict
     return blocks.pack(index, parts)
 
 
-def decode(decode_one: Callable[[Sections, ClipHeader], AnyMotion], sections: Sections, header: ClipHeader,
-           start: int, stop: int) -> tuple[AnyMotion, Sections]:
-    """Frames ``[start, stop)`` of a blocked clip, decoding only the blocks they lie in; returns the motion and
-    the clip-wide sections (the ones outside the blocks)."""
-    index, parts, shared = blocks.unpack(sections, header.frames)
-    spans = [index.bounds(i) for i in range(index.count)]
-    return decode_spans(decode_one, parts, spans, header, start, stop), shared
-
-
 def decode_spans(decode_one: Callable[[Sections, ClipHeader], AnyMotion], parts: list[Sections],
                  spans: list[tuple[int, int]], header: ClipHeader, start: int, stop: int) -> AnyMotion:
     """Frames ``[start, stop)`` from blocks ``parts`` covering frames ``spans`` ``[(a, b), ...]`` (in order,

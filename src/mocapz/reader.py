@@ -185,6 +185,22 @@ class Reader:
                 return attach(motion, self._extras)
             return with_extras(motion.slice(start, stop), self._extras, self.header, start, stop)
 
+    def iter_blocks(self, frames: Frames = None) -> Iterator[tuple[int, AnyMotion]]:
+        """The frames of ``frames`` (default every frame) block by block, as each is decoded: ``(the number of
+        frames selected in all, the next block's motion)``; a clip in one block comes in one piece. C3D extras are
+        not attached (use :meth:`read`)."""
+        start, stop = blocking.frame_range(frames, self.header.frames)
+        if self._parts is None:
+            yield stop - start, self.read(frames)
+            return
+        pieces = blocking.iter_spans(self.info.decode, self._parts, self._spans, self.header, start, stop)
+        while True:
+            with decoder_errors(self.info.name, self.path):
+                piece = next(pieces, None)
+            if piece is None:
+                return
+            yield stop - start, piece
+
 
 def open(source: bytes | str | PathLike[str]) -> Reader:  # noqa: A001  (as gzip.open: the module's reader)
     """A :class:`Reader` of a ``.mcz`` file: its bytes, or its path (read whole, once)."""
