@@ -24,7 +24,7 @@ from types import ModuleType
 
 import numpy as np
 
-from mocapz.codecs.correction import lifting
+from mocapz.codecs.correction import chainround, lifting
 from mocapz.codecs.correction.bounds import ColumnTolerances
 from mocapz.codecs.correction.compiled import kernels
 from mocapz.model.kinematics import euler_angles, euler_rotations, local_translations
@@ -63,7 +63,13 @@ class Chain:
         self.feedback = np.array([c is not None for c in self.rot_cols], dtype=bool)
         self.feedback[sk.parents < 0] = False  # a root has nothing decoded above it
         # per feedback joint, its original global rotation ``(frames, 3, 3)`` (the goal under its decoded parent)
-        self.goal_rot = [np.ascontiguousarray(global_rot[:, j]) if fb else None for j, fb in enumerate(self.feedback)]
+        held = np.flatnonzero(self.feedback)
+        self.goal_all = np.empty((len(held), *global_rot.shape[:1], 3, 3))  # one array (the one-call round's)
+        self.goal_index = np.full(sk.n_joints, -1, dtype=np.int64)
+        for k, j in enumerate(held):
+            self.goal_all[k], self.goal_index[j] = global_rot[:, j], k
+        self.goal_rot = [self.goal_all[k] if k >= 0 else None for k in self.goal_index]
+        self.finite = bool(np.isfinite(positions).all() and np.isfinite(self.values).all())
         kids: list[list[int]] = [[] for _ in range(sk.n_joints)]  # points (joints, end sites) hanging on j
         for c in range(sk.n_joints):
             if sk.parents[c] >= 0:
@@ -85,6 +91,7 @@ class Chain:
         self.children = [[c for c in range(sk.n_joints) if sk.parents[c] == j] for j in range(sk.n_joints)]
         self.ends = [[e for e, site in enumerate(sk.end_sites) if site[0] == j] for j in range(sk.n_joints)]
         self.last: _Last | None = None  # what the last call of quantise kept (compiled kernels)
+        self.round_plan = chainround.plan(self)  # the one-call round's arrays, or None (the per-joint loop)
         self.work = motion.n_frames  # frames of the whole job (a block's clip): whether the kernels pay for loading
 
     def levers(self, channels: np.ndarray) -> np.ndarray:
@@ -119,14 +126,21 @@ class Chain:
         continued clip's (:func:`~mocapz.codecs.correction.lifting.quantise`)."""
         sk = self.skeleton
         frames, cols = x.shape
-        _, n = lifting.plan(frames + (prefix is not None), levels)
-        q = np.zeros((n, cols), dtype=np.int64)
         kern = kernels(max(frames, self.work))
         compiled = kern is not None
         last = self.last
         again = compiled and last is not None and last.x is x and last.base is base and last.key == (levels, shrink)
         y = last.y if again and last is not None else np.zeros_like(x)  # again: only what moved is redone
         self.last = last = None  # kept again when this call is through (never half updated)
+        round_kern = kernels(0, "roundkernels") if kern is not None and chainround.usable(self, x, base, tol) \
+            else None
+        if round_kern is not None:  # the whole round in one compiled call: the same numbers
+            q, pos = chainround.quantise(self, round_kern, x, base, tol, levels, shrink,  # type: ignore[arg-type]
+                                         prefix, y, again, COS_TURN)
+            self.last = _Last(x, base, (levels, shrink), y)
+            return q, y, pos
+        _, n = lifting.plan(frames + (prefix is not None), levels)
+        q = np.zeros((n, cols), dtype=np.int64)
         pos = np.empty((frames, sk.n_points, 3))
         p_dec = pos[:, : sk.n_joints]  # the joints' positions: a view of the points'
         g: dict[int, np.ndarray] = {}  # decoded global rotations (frames, 3, 3) of the joints still needed
