@@ -131,13 +131,16 @@ class Chain:
         last = self.last
         again = compiled and last is not None and last.x is x and last.base is base and last.key == (levels, shrink)
         y = last.y if again and last is not None else np.zeros_like(x)  # again: only what moved is redone
-        self.last = last = None  # kept again when this call is through (never half updated)
+        prev, self.last = last, None  # kept again when this call is through (never half updated)
         round_kern = kernels(0, "roundkernels") if kern is not None and chainround.usable(self, x, base, tol) \
             else None
         if round_kern is not None:  # the whole round in one compiled call: the same numbers
+            before = None if not again or prev is None or prev.q is None or prev.t0 is None \
+                or not np.array_equal(prev.t0, tol.t0) else (prev.q, prev.levels)  # type: ignore[union-attr]
             q, pos = chainround.quantise(self, round_kern, x, base, tol, levels, shrink,  # type: ignore[arg-type]
-                                         prefix, y, again, COS_TURN)
-            self.last = _Last(x, base, (levels, shrink), y)
+                                         prefix, y, before, COS_TURN)
+            self.last = _Last(x, base, (levels, shrink), y, q, tol.t0.copy(),  # type: ignore[union-attr]
+                              np.array(tol.levels, copy=True))  # type: ignore[union-attr]
             return q, y, pos
         _, n = lifting.plan(frames + (prefix is not None), levels)
         q = np.zeros((n, cols), dtype=np.int64)
@@ -307,6 +310,9 @@ class _Last:
     base: np.ndarray
     key: tuple[int, float]
     y: np.ndarray
+    q: np.ndarray | None = None  # the one-call round's: its integers (updated in place by the next call)
+    t0: np.ndarray | None = None  # and the tolerances they were made with
+    levels: np.ndarray | None = None
 
 
 _NO_PARENT = np.empty((0, 3, 3))  # a root's parent rotations (never read)

@@ -104,11 +104,13 @@ def usable(chain: Chain, x: np.ndarray, base: np.ndarray, tol: object) -> bool:
 
 
 def quantise(chain: Chain, kern: ModuleType, x: np.ndarray, base: np.ndarray, tol: ColumnTolerances, levels: int,
-             shrink: float, prefix: np.ndarray | None, y: np.ndarray, again: bool, cos_turn: float,
-             ) -> tuple[np.ndarray, np.ndarray]:
-    """:meth:`.chain.Chain.quantise`'s round in one call: fills ``y`` ``(frames, columns)`` (on a call redoing the
-    one before, ``again``, it holds that call's decoded residual) and returns the integers ``(n, columns)`` and
-    the decoded positions ``(frames, points, 3)``."""
+             shrink: float, prefix: np.ndarray | None, y: np.ndarray, before: tuple[np.ndarray, np.ndarray] | None,
+             cos_turn: float) -> tuple[np.ndarray, np.ndarray]:
+    """:meth:`.chain.Chain.quantise`'s round in one call: fills ``y`` ``(frames, columns)`` and returns the integers
+    ``(n, columns)`` and the decoded positions ``(frames, points, 3)``. ``before``: on a call redoing the one before
+    (the same ``x``, ``base``, ``t0`` and column groups; ``y`` holds its decoded residual), its integers (updated in
+    place and returned) and its tolerance levels ``(frames, groups)``: the columns whose tolerances and residual are
+    unchanged keep their coding."""
     rp = chain.round_plan
     assert rp is not None
     sk = chain.skeleton
@@ -118,7 +120,11 @@ def quantise(chain: Chain, kern: ModuleType, x: np.ndarray, base: np.ndarray, to
     lo, hi = int(tol.levels.min()), int(tol.levels.max())
     halves = 2.0 ** (-np.arange(lo, hi + 1).astype(np.float64) / 2.0)  # NumPy's own numbers for every level
     factors = np.array([lifting.level_factor(level, shrink) for level in range(lv + 1)])
-    q = np.zeros((n, cols), dtype=np.int64)
+    again = before is not None and before[1].shape == tol.levels.shape
+    if again and before is not None:
+        q, dirty = before[0], (before[1] != tol.levels).any(axis=0)
+    else:
+        q, dirty = np.zeros((n, cols), dtype=np.int64), np.ones(tol.levels.shape[1], dtype=np.bool_)
     pos = np.empty((frames, sk.n_points, 3))
     slots = np.empty((rp.n_slots, frames, 3, 3))
     ends = np.empty((rp.n_ends, frames, 3, 3))
@@ -126,10 +132,11 @@ def quantise(chain: Chain, kern: ModuleType, x: np.ndarray, base: np.ndarray, to
     a = rp.arrays
     kern.run(x, base, tol.t0, tol.group, tol.levels, lo, halves, lv, n, factors, lifting.STEP, pre,
              np.zeros(0) if prefix is None else np.asarray(prefix, dtype=np.float64), y, q, pos, slots, ends,
-             moved[0], moved[1], again, a["parents"], a["starts"], a["stops"], a["plain_ptr"], a["plain_idx"],
-             a["feedback"], a["rot_cols"], a["euler3"], a["e3_cols"], a["all_cols"], a["axes"], a["axis_frames"],
-             a["turned"], a["aim"], a["ijk"], a["signs"], a["goal_of"], chain.goal_all, chain.positions, chain.values,
-             a["pos_axis"], a["offsets"], a["slot"], a["end_slot"], chain.scale, chain.period, cos_turn)
+             moved[0], moved[1], again, dirty, a["parents"], a["starts"], a["stops"], a["plain_ptr"],
+             a["plain_idx"], a["feedback"], a["rot_cols"], a["euler3"], a["e3_cols"], a["all_cols"], a["axes"],
+             a["axis_frames"], a["turned"], a["aim"], a["ijk"], a["signs"], a["goal_of"], chain.goal_all,
+             chain.positions, chain.values, a["pos_axis"], a["offsets"], a["slot"], a["end_slot"], chain.scale,
+             chain.period, cos_turn)
     for e, (j, off, _) in enumerate(sk.end_sites):
         pos[:, sk.n_joints + e] = pos[:, j] + ends[a["end_slot"][j]] @ np.asarray(off)
     return q, pos

@@ -46,27 +46,38 @@ def _remainder(a: float, b: float) -> float:
 
 @jit
 def _lift(x, cols, t0, group, levels, lo, halves, lv: int, n: int, factors, step_scale: float, pre: int, prefix,
-          y, q, changed, start: int, again: bool) -> None:
+          y, q, changed, start: int, again: bool, dirty_groups, dirty_x) -> None:
     """:func:`~.lifting.quantise` of the columns ``cols`` (residual ``x``, tolerances ``t0[c] * halves[levels[f,
     group[c]] - lo]`` capped at ``BIG``), written into ``y`` and ``q``; on a call redoing the one before
-    (``again``) ``changed`` ``(frames, the joint's columns from start)`` marks the decoded values that moved."""
+    (``again``) only the columns whose tolerances (``dirty_groups``) or residual (``dirty_x``) changed since (the
+    others' integers and decoded values are those of that call, in ``q`` and ``y``), and ``changed`` ``(frames,
+    the joint's columns from start)`` marks the decoded values that moved."""
     frames = x.shape[0]
-    m = cols.size
+    todo = np.empty(cols.size, dtype=np.int64)
+    m = 0
+    for k in range(cols.size):
+        c = cols[k]
+        if not again or dirty_groups[group[c]] or dirty_x[c]:
+            todo[m] = c
+            m += 1
+    if m == 0:
+        return
+    todo = todo[:m]
     xp = np.empty((n, m))
     tp = np.empty((n, m))
     yb = np.zeros((n, m))
     qb = np.zeros((n, m), dtype=np.int64)
-    for k in range(m):
-        c = cols[k]
-        for r in range(n):
-            src = min(max(r - pre, 0), frames - 1)  # the grid's row before a continued clip, the padding after
+    for r in range(n):
+        src = min(max(r - pre, 0), frames - 1)  # the grid's row before a continued clip, the padding after
+        for k in range(m):
+            c = todo[k]
             xp[r, k] = x[src, c]
             tv = t0[c] * halves[levels[src, group[c]] - lo]
             tp[r, k] = BIG if tv > BIG else tv
     span = 1 << lv
     knots = (n - 1) // span + 1
     for k in range(m):
-        c = cols[k]
+        c = todo[k]
         least = tp[0, k]
         for i in range(1, knots):
             least = min(least, tp[i * span, k])
@@ -86,15 +97,16 @@ def _lift(x, cols, t0, group, levels, lo, halves, lv: int, n: int, factors, step
             qb[i, k] = qi - before
             before = qi
     details(xp, tp, yb, qb, lv, factors, step_scale, knots)
-    for k in range(m):
-        c = cols[k]
-        for f in range(frames):
+    for f in range(frames):
+        for k in range(m):
+            c = todo[k]
             v = yb[f + pre, k]
             if again and v != y[f, c]:
                 changed[f, c - start] = True
             y[f, c] = v
-        for r in range(n):
-            q[r, c] = qb[r, k]
+    for r in range(n):
+        for k in range(m):
+            q[r, todo[k]] = qb[r, k]
 
 
 @jit
@@ -111,14 +123,16 @@ def _any(changed, cols, start: int, again: bool, out) -> None:
 
 @jit
 def run(x, base, t0, group, levels, lo: int, halves, lv: int, n: int, factors, step_scale: float, pre: int,
-        prefix, y, q, pos, slots, ends, moved_p, moved_g, again: bool, parents, starts, stops, plain_ptr,
+        prefix, y, q, pos, slots, ends, moved_p, moved_g, again: bool, dirty_groups, parents, starts, stops, plain_ptr,
         plain_idx, feedback, rot_cols, euler3, e3_cols, all_cols, axes, axis_frames, turned, aim, ijk, signs,
         goal_of, goal_all, positions, values, pos_axis, offsets, slot, end_slot, scale: float, period: float,
         cos_turn: float) -> None:
     """One round of the closed loop over every joint (:meth:`~.chain.Chain.quantise`): ``y``, ``q``, the joints'
     rows of ``pos`` and ``ends`` filled, the feedback joints' rotation columns of ``x`` set to their residual
     against the goal (on the frames where something above them moved, when ``again``), ``moved_p`` and
-    ``moved_g`` ``(joints, frames)`` where each joint's decoded position and global rotation may have moved.
+    ``moved_g`` ``(joints, frames)`` where each joint's decoded position and global rotation may have moved. On a
+    call redoing the one before (``again``: ``y`` and ``q`` hold its coding), a column is coded again only where
+    its group's tolerances changed (``dirty_groups`` ``(groups,)``) or its residual against the goal did.
 
     Per joint: ``parents``, ``starts``/``stops`` (its columns), ``plain_idx[plain_ptr[j]:plain_ptr[j + 1]]`` the
     columns coded against their own original, ``feedback`` and ``rot_cols`` ``(joints, 3)``, ``euler3`` and
@@ -136,6 +150,7 @@ def run(x, base, t0, group, levels, lo: int, halves, lv: int, n: int, factors, s
     every = np.arange(frames)
     picked = np.empty(frames, dtype=np.int64)
     own = np.empty(frames, dtype=np.bool_)
+    dirty_x = np.zeros(x.shape[1], dtype=np.bool_)  # the residual columns rewritten with other values
     eye = np.eye(3)
     for j in range(parents.size):
         p = parents[j]
@@ -146,7 +161,7 @@ def run(x, base, t0, group, levels, lo: int, halves, lv: int, n: int, factors, s
         plain = plain_idx[plain_ptr[j]:plain_ptr[j + 1]]
         if plain.size:
             _lift(x, plain, t0, group, levels, lo, halves, lv, n, factors, step_scale, pre, prefix, y, q, changed,
-                  start, again)
+                  start, again, dirty_groups, dirty_x)
         for a in range(3):
             col = pos_axis[j, a]
             for f in range(frames):
@@ -170,9 +185,12 @@ def run(x, base, t0, group, levels, lo: int, halves, lv: int, n: int, factors, s
                     f = rows[r]
                     for a in range(3):
                         c = rot[a]
-                        x[f, c] = _remainder(out[f, a] - base[f, c] + half, period) - half
+                        v = _remainder(out[f, a] - base[f, c] + half, period) - half
+                        if v != x[f, c]:
+                            dirty_x[c] = True
+                        x[f, c] = v
             _lift(x, rot, t0, group, levels, lo, halves, lv, n, factors, step_scale, pre, prefix, y, q, changed,
-                  start, again)
+                  start, again, dirty_groups, dirty_x)
         _any(changed, e3_cols[j] if euler3[j] else all_cols[j, :width], start, again, own)
         for f in range(frames):
             moved_g[j, f] = own[f] if p < 0 else own[f] or moved_g[p, f]
