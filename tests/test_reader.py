@@ -92,3 +92,35 @@ def test_blocks_one_by_one_join_to_the_range(files: dict[str, bytes], name: str)
     assert all(total == 430 for total, _ in pieces) and (len(pieces) > 1) == (name != "quant (seekable)")
     joined = np.concatenate([_values(m) for _, m in pieces])
     assert np.array_equal(joined, _values(reader[130:560]), equal_nan=True)
+
+
+def _longer(m: MarkerMotion, frames: int) -> MarkerMotion:
+    """A marker clip played forth and back to ``frames`` frames (a long take, coded with the seekable layout)."""
+    pos = m.positions
+    loop = np.concatenate([pos, pos[::-1]])
+    reps = -(-frames // len(loop))
+    return replace(m, positions=np.concatenate([loop] * reps)[:frames].copy())
+
+
+@pytest.mark.parametrize("name", ["quant (seekable)", "pga (seekable)", "patterns markers (seekable)"])
+def test_a_reader_keeps_what_its_windows_share(files: dict[str, bytes], name: str) -> None:
+    """A reader read many times keeps what the windows of a clip in one block share (the running values' chunks
+    decoded so far, a model's streams): windows in any order, repeated, overlapping or spanning chunks, give
+    the full decode's rows to the bit, as a reader read once (``decompress(frames=)``, which keeps nothing)."""
+    if name.startswith("patterns markers"):
+        c3d = mocapz.load(data_path("other/markers/btkdata/Gait.trc"))
+        data = mocapz.compress(_longer(c3d, 1300), codec="patterns")
+    else:
+        data = files[name]
+    full = _values(mocapz.decompress(data))
+    n = full.shape[0]
+    rng = np.random.default_rng(8)
+    ranges = [(int(a), int(min(n, a + rng.integers(1, 700)))) for a in rng.integers(0, n - 1, 14)]
+    ranges += [ranges[3], (n - 1, n), (0, 1), ranges[0]]
+    for order in (ranges, ranges[::-1]):
+        reader = mocapz.open(data)
+        for a, b in order:
+            assert np.array_equal(_values(reader[a:b]), full[a:b], equal_nan=True), (name, a, b)
+        assert reader._memo  # what the windows share was kept
+    once = mocapz.Reader(data, keep=False)
+    assert np.array_equal(_values(once[5:25]), full[5:25], equal_nan=True) and once._memo is None

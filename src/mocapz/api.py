@@ -82,7 +82,7 @@ def decompress(data: bytes, path: str | Path | None = None, *,
     """Decode the bytes of a ``.mcz`` file back into a motion, or only ``frames`` of it (a slice: the values of
     those frames in a full decode; a file coded in blocks decodes only the blocks they lie in): a
     :class:`~mocapz.reader.Reader` used once."""
-    return Reader(data, path).read(frames)
+    return Reader(data, path, keep=False).read(frames)
 
 
 def iter_decompress(data: bytes, path: str | Path | None = None, *,
@@ -90,4 +90,4 @@ def iter_decompress(data: bytes, path: str | Path | None = None, *,
     """The frames of a ``.mcz`` (or ``frames`` of it) block by block, as each is decoded: ``(the number of frames
     selected in all, the next block's motion)``; a clip in one block comes in one piece. C3D extras are not
     attached (use :func:`decompress`)."""
-    yield from Reader(data, path).iter_blocks(frames)
+    yield from Reader(data, path, keep=False).iter_blocks(frames)

@@ -18,6 +18,7 @@ from contextlib import contextmanager
 from dataclasses import replace
 from os import PathLike
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -107,17 +108,23 @@ class Reader:
     Args:
         data: the file's bytes.
         path: the file's name, for error messages.
+        keep: keep what the windows of a clip in one block decode in common for the next reads (the correction's
+            running values, chunk by chunk as reads reach them, and its zstd-packed streams unpacked; pga's
+            trajectories and model: a few MB for a 5,000-frame clip, at most a few values per frame and column):
+            a reader read many times; False for one read (:func:`mocapz.decompress`), which then decodes only
+            what its frames need.
 
     Raises:
         FormatError: the bytes are not a valid ``.mcz`` (checked here, once: checksum, layout, blocks).
     """
 
-    def __init__(self, data: bytes, path: str | PathLike[str] | None = None) -> None:
+    def __init__(self, data: bytes, path: str | PathLike[str] | None = None, keep: bool = True) -> None:
         self.path = None if path is None else str(path)
         self._parts: list[dict[str, bytes]] | None = None  # the blocks' sections (a clip in blocks, a stream)
         self._spans: list[tuple[int, int]] = []  # the blocks' frames [a, b)
         self._extras: dict[str, bytes] = {}
         self._empty_stream = False
+        self._memo: dict[str, Any] | None = {} if keep else None  # what a clip's windows share (decode_window)
         if is_stream(data):
             stream, header = read_stream_header(data, self.path)
             self.info = codec_of(stream.codec, stream.codec_version, self.path)
@@ -177,7 +184,7 @@ class Reader:
                 motion = blocking.decode_spans(self.info.decode, self._parts, self._spans, self.header, start, stop)
                 return with_extras(motion, self._extras, self.header, start, stop)
             if (start, stop) != (0, self.header.frames) and self.info.decode_window is not None:
-                part = self.info.decode_window(self._sections, self.header, start, stop)
+                part = self.info.decode_window(self._sections, self.header, start, stop, memo=self._memo)
                 if part is not None:  # only what the frames need was decoded
                     return with_extras(part, self._extras, self.header, start, stop)
             motion = self.info.decode(self._sections, self.header)

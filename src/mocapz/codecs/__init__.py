@@ -36,9 +36,10 @@ class CodecInfo:
         lossy: False only for codecs that give the values back exactly.
         block_seconds: the default length of the independent blocks a clip is coded in (random access,
             :mod:`mocapz.blocking`); 0: the whole clip in one block.
-        decode_window: ``decode_window(sections, header, start, stop) -> motion or None``: frames ``[start,
-            stop)`` of a clip in one block, decoding only what they need (the values of a full decode), or None
-            where this file needs the full decode.
+        decode_window: ``decode_window(sections, header, start, stop, memo=None) -> motion or None``: frames
+            ``[start, stop)`` of a clip in one block, decoding only what they need (the values of a full decode),
+            or None where this file needs the full decode; ``memo``: a dict the caller keeps for these sections
+            (a reader's), where the codec may leave what every window of them reads.
     """
 
     name: str
@@ -50,7 +51,7 @@ class CodecInfo:
     summary: str = ""
     lossy: bool = True
     block_seconds: float = 0.0
-    decode_window: Callable[[dict[str, bytes], ClipHeader, int, int], AnyMotion | None] | None = None
+    decode_window: Callable[..., AnyMotion | None] | None = None
 
     def validate(self, options: dict[str, Any]) -> dict[str, Any]:
         """Checked options (raises OptionError naming the option and what it accepts)."""

@@ -180,7 +180,17 @@ def unpack_zigzag_rows(buf: bytes, rows: int, cols: int, spans: list[tuple[int, 
     stream decompressed once. The planes are joined, transposed and unzigzagged in the narrowest unsigned type
     that holds them, and widened once at the end (a few bytes per value moved instead of three passes of
     eight)."""
-    planes = _unpack_planes(buf, rows * cols, MAX_COUNT)
+    return planes_rows(unpack_planes(buf, rows * cols), rows, cols, spans)
+
+
+def unpack_planes(buf: bytes, count: int) -> np.ndarray:
+    """The unpacked byte planes of a :func:`pack_zigzag_columns` stream of ``count`` values (what
+    :func:`planes_rows` reads rows from: a reader may keep them)."""
+    return _unpack_planes(buf, count, MAX_COUNT)
+
+
+def planes_rows(planes: np.ndarray, rows: int, cols: int, spans: list[tuple[int, int]]) -> list[np.ndarray]:
+    """:func:`unpack_zigzag_rows` from planes unpacked already (:func:`unpack_planes`)."""
     return [_columns(planes, rows, cols, a, b).T.astype(np.int64, order="C") for a, b in spans]
 
 

@@ -20,6 +20,8 @@ every length is checked before anything is allocated.
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 from mocapz.errors import FormatError
@@ -63,10 +65,12 @@ def _encode_range(v: np.ndarray, starts: list[int]) -> bytes:
 
 
 def decode_segments(data: bytes, shape: tuple[int, int], starts: list[int],
-                    wanted: list[int] | None = None, until: int | None = None) -> dict[int, np.ndarray]:
+                    wanted: list[int] | None = None, until: int | None = None,
+                    planes: dict[bytes, np.ndarray] | None = None) -> dict[int, np.ndarray]:
     """Segments of an :func:`encode_segments` stream of a ``shape`` matrix cut at ``starts``: ``{index: rows}``
     for the segment indices ``wanted`` (all by default), the others not decoded (a range-coded stream) or not
-    kept; rows from ``until`` on are not needed (the segments holding them end there)."""
+    kept; rows from ``until`` on are not needed (the segments holding them end there). ``planes``: where a
+    zstd-packed stream's unpacked planes are kept by its bytes (a reader's: decompressed once)."""
     rows, cols = shape
     _check_starts(starts, rows)
     nexts = [*starts[1:], rows]
@@ -81,8 +85,15 @@ def decode_segments(data: bytes, shape: tuple[int, int], starts: list[int],
     if not buf or buf[0] not in (SEG_ZSTD, SEG_RANGE):
         raise FormatError(None, "corrupted seekable stream (layout)")
     if buf[0] == SEG_ZSTD:  # decompressed whole, only the wanted segments' rows unpacked
-        return dict(zip(wanted, _zstd_rows(bytes(buf[1:]), rows, cols, [(starts[i], end(i)) for i in wanted]),
-                        strict=True)) if wanted else {}
+        if not wanted:
+            return {}
+        unpacked = None if planes is None else planes.get(data)
+        if unpacked is None:
+            unpacked = entropy.unpack_planes(_zstd_body(bytes(buf[1:]), rows, cols), rows * cols)
+            if planes is not None:
+                planes[data] = unpacked
+        return dict(zip(wanted, entropy.planes_rows(unpacked, rows, cols, [(starts[i], end(i)) for i in wanted]),
+                        strict=True))
     if not entropy.HAVE_CONSTRICTION:
         raise FormatError(None, "this stream was written by the range coder; install 'constriction'")
     if len(buf) < 2 or buf[1] >= len(entropy.DELTA_SCALES):
@@ -127,12 +138,6 @@ def _unescape(sym: np.ndarray, esc: bytes, marks: np.ndarray, complete: bool) ->
         sym.reshape(-1)[marks] = values[:marks.size]
         return sym
     return entropy._unescape(sym, esc, marks)
-
-
-def _zstd_rows(data: bytes, rows: int, cols: int, spans: list[tuple[int, int]]) -> list[np.ndarray]:
-    """Rows of a CODER_ZSTD :func:`~mocapz.format.entropy.encode_int_matrix` stream of a ``(rows, cols)``
-    matrix, per span ``(first, stop)``."""
-    return entropy.unpack_zigzag_rows(_zstd_body(data, rows, cols), rows, cols, spans)
 
 
 def _zstd_body(data: bytes, rows: int, cols: int) -> bytes:
@@ -209,9 +214,11 @@ def _inner_starts(rows: int, chunk: int) -> list[int]:
     return starts
 
 
-def read_running(data: bytes, shape: tuple[int, int], chunk: int, a: int = 0, b: int | None = None) -> np.ndarray:
+def read_running(data: bytes, shape: tuple[int, int], chunk: int, a: int = 0, b: int | None = None,
+                 memo: dict[str, Any] | None = None) -> np.ndarray:
     """Rows ``[a, b)`` ``(b - a, columns)`` int64 of a :func:`pack_running` stream of a ``shape`` matrix, decoding
-    only the chunks holding them."""
+    only the chunks holding them. ``memo``: a dict kept for this stream (a reader's), where the chunks decoded
+    are kept whole and found by later calls (the same integers)."""
     rows, cols = shape
     b = rows if b is None else b
     if not 0 <= a <= b <= rows or chunk < 1:
@@ -219,24 +226,51 @@ def read_running(data: bytes, shape: tuple[int, int], chunk: int, a: int = 0, b:
     if not data or data[0] not in (RUN_WHOLE, RUN_CHUNKS):
         raise FormatError(None, "corrupted seekable stream (running layout)")
     if data[0] == RUN_WHOLE:
-        return entropy.unpack_zigzag_running(_zstd_body(data[1:], rows, cols), rows, cols, a, b)
+        if memo is None:
+            return entropy.unpack_zigzag_running(_zstd_body(data[1:], rows, cols), rows, cols, a, b)
+        if "whole" not in memo:  # a mostly-still series: summed whole in a fraction of a millisecond
+            memo["whole"] = entropy.unpack_zigzag_running(_zstd_body(data[1:], rows, cols), rows, cols, 0, rows)
+        return np.array(memo["whole"][a:b])
     size, pos = read_uvarint(data, 1)
     nchunks = len(range(0, rows, chunk))
-    firsts = np.cumsum(decode_int_matrix(_take(memoryview(data), pos, size), (nchunks, cols)), axis=0)
+    firsts = None if memo is None else memo.get("firsts")
+    if firsts is None:
+        firsts = np.cumsum(decode_int_matrix(_take(memoryview(data), pos, size), (nchunks, cols)), axis=0)
+        if memo is not None:
+            memo["firsts"] = firsts
     if a == b:
         return np.zeros((0, cols), dtype=np.int64)
     first, last = a // chunk, (b - 1) // chunk
-    # the segment index of every chunk with inner rows (chunks of one row have none)
-    seg_of = np.cumsum([min(rows, c + chunk) - c > 1 for c in range(0, rows, chunk)]) - 1
-    needs = [c for c in range(first, last + 1) if min(rows, c * chunk + chunk) - c * chunk > 1 and c * chunk + 1 < b]
-    wanted = [int(seg_of[c]) for c in needs]
-    starts = _inner_starts(rows, chunk)
-    # the inner rows up to row b - 1 (chunk ``last``'s inner rows before it)
-    until = starts[int(seg_of[last])] + (b - 1 - last * chunk) if needs and needs[-1] == last else None
-    segs = decode_segments(bytes(memoryview(data)[pos + size:]), (rows - nchunks, cols), starts, wanted, until) \
-        if wanted else {}
+    done: dict[int, np.ndarray] = {} if memo is None else memo.setdefault("chunks", {})
+    todo = [c for c in range(first, last + 1) if c not in done]
+    if todo:
+        # a memo keeps whole chunks; without one, rows from b on are not decoded
+        _decode_chunks(data[pos + size:], rows, cols, chunk, firsts, todo, b if memo is None else rows, done)
     out = np.empty((b - a, cols), dtype=np.int64)
     for c in range(first, last + 1):
+        lo = c * chunk
+        part = done[c]
+        s, e = max(a, lo), min(b, lo + part.shape[0])
+        out[s - a:e - a] = part[s - lo:e - lo]
+    if memo is None:
+        done.clear()
+    return out
+
+
+def _decode_chunks(inner_data: bytes, rows: int, cols: int, chunk: int, firsts: np.ndarray, todo: list[int],
+                   b: int, done: dict[int, np.ndarray]) -> None:
+    """The rows of chunks ``todo`` (those before row ``b``) of a :data:`RUN_CHUNKS` stream into ``done``."""
+    nchunks = len(range(0, rows, chunk))
+    # the segment index of every chunk with inner rows (chunks of one row have none)
+    seg_of = np.cumsum([min(rows, c + chunk) - c > 1 for c in range(0, rows, chunk)]) - 1
+    needs = [c for c in todo if min(rows, c * chunk + chunk) - c * chunk > 1 and c * chunk + 1 < b]
+    wanted = [int(seg_of[c]) for c in needs]
+    starts = _inner_starts(rows, chunk)
+    last = todo[-1]
+    # the inner rows up to row b - 1 (chunk ``last``'s inner rows before it)
+    until = starts[int(seg_of[last])] + (b - 1 - last * chunk) if needs and needs[-1] == last else None
+    segs = decode_segments(inner_data, (rows - nchunks, cols), starts, wanted, until) if wanted else {}
+    for c in todo:
         lo = c * chunk
         n = min(rows, lo + chunk) - lo
         part = np.empty((n, cols), dtype=np.int64)
@@ -247,6 +281,4 @@ def read_running(data: bytes, shape: tuple[int, int], chunk: int, a: int = 0, b:
             part = part[:n]
             np.cumsum(inner, axis=0, out=part[1:])
             part[1:] += firsts[c]
-        s, e = max(a, lo), min(b, lo + n)
-        out[s - a:e - a] = part[s - lo:e - lo]
-    return out
+        done[c] = part

@@ -19,6 +19,8 @@ side in all. :func:`decode_window` inverse-lifts only those, with the same float
 
 from __future__ import annotations
 
+from dataclasses import dataclass, field
+
 import numpy as np
 
 from mocapz.codecs.correction.lifting import BIG, STEP, level_factor, plan, row_groups
@@ -117,14 +119,15 @@ def pack_levels(levels: np.ndarray, frames: int, depth: int) -> bytes:
     return b"".join(write_uvarint(int(t)) for t in top) + pack_running(levels, LEVEL_CHUNK)
 
 
-def read_levels(data: bytes, frames: int, groups: int, a: int = 0, b: int | None = None
-                ) -> tuple[np.ndarray, np.ndarray]:
-    """The largest level on the knots ``(groups,)`` and the levels of frames ``[a, b)`` ``(b - a, groups)``."""
+def read_levels(data: bytes, frames: int, groups: int, a: int = 0, b: int | None = None,
+                memo: dict[str, object] | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """The largest level on the knots ``(groups,)`` and the levels of frames ``[a, b)`` ``(b - a, groups)``
+    (``memo``: :func:`mocapz.format.seekable.read_running`'s)."""
     top, pos = [], 0
     for _ in range(groups):
         value, pos = read_uvarint(data, pos)
         top.append(value)
-    lev = read_running(data[pos:], (frames, groups), LEVEL_CHUNK, a, frames if b is None else b)
+    lev = read_running(data[pos:], (frames, groups), LEVEL_CHUNK, a, frames if b is None else b, memo)
     top_arr = np.array(top, dtype=np.int64)
     if (lev.size and (lev.min() < 0 or lev.max() > 60)) or (top_arr.size and top_arr.max() > 60):
         raise FormatError(None, "corrupted correction levels")
@@ -143,11 +146,36 @@ def reach(frames: int, depth: int, a: int, b: int) -> list[tuple[int, int]]:
     return out
 
 
+@dataclass(frozen=True)
+class Running:
+    """What the windows of one clip's seekable streams share (:func:`open_running`): the largest level on the
+    knots ``(groups,)``, the ``c.res`` layout and streams, and what the windows have decoded so far, kept for the
+    next ones (the chunks of the levels' and the knots' running values, the unpacked planes of zstd-packed
+    streams: :func:`mocapz.format.seekable.read_running`'s ``memo``)."""
+
+    top: np.ndarray
+    split: int
+    parts: list[bytes]
+    levels: dict[str, object] = field(default_factory=dict)
+    knots: dict[str, object] = field(default_factory=dict)
+    planes: dict[bytes, np.ndarray] = field(default_factory=dict)
+
+
+def open_running(data: bytes, lev_data: bytes, groups: np.ndarray, frames: int, depth: int) -> Running:
+    """:class:`Running` of a seekable ``c.res`` (``data``) and ``c.levels`` (``lev_data``) whose columns' groups
+    are ``groups`` ``(columns,)``, nothing decoded yet (a reader keeps it)."""
+    top, _ = read_levels(lev_data, frames, int(groups.max(initial=-1)) + 1, 0, 0)
+    split, parts = _streams(data, frames, depth)
+    return Running(top, split, parts)
+
+
 def decode_window(data: bytes, lev_data: bytes, tol_col: np.ndarray, halves: np.ndarray, groups: np.ndarray,
-                  frames: int, depth: int, shrink: float, a: int, b: int) -> np.ndarray:
+                  frames: int, depth: int, shrink: float, a: int, b: int, running: Running | None = None
+                  ) -> np.ndarray:
     """The decoded residual of frames ``[a, b)`` ``(b - a, columns)``, from a seekable ``c.res`` (``data``) and
     ``c.levels`` (``lev_data``), the tolerances ``tol_col[c] * halves[level]`` (capped at BIG) of
-    :func:`~.lifting.decode_table`: the rows of the full decode, to the bit."""
+    :func:`~.lifting.decode_table`: the rows of the full decode, to the bit. ``running``: the streams' running
+    values' chunks decoded so far, kept for later windows (:func:`open_running`; the same numbers)."""
     cols = groups.size
     lv, n = plan(frames, depth)
     span = 1 << lv
@@ -155,10 +183,10 @@ def decode_window(data: bytes, lev_data: bytes, tol_col: np.ndarray, halves: np.
     k_lo, k_hi = ranges[lv][0] // span, -(-ranges[lv][1] // span)  # the knots around the coarsest reach
     lo, hi = k_lo * span, k_hi * span  # the window of padded positions worked on
     top, lev = read_levels(lev_data, frames, int(groups.max(initial=-1)) + 1, min(lo, frames - 1),
-                           min(hi, frames - 1) + 1)
-    split, parts = _streams(data, frames, depth)
-    rows = row_groups(frames, depth)
-    knots = read_running(parts[0], (rows[0], cols), _knot_chunk(depth, frames), k_lo, k_hi + 1)
+                           min(hi, frames - 1) + 1, None if running is None else running.levels)
+    split, parts = _streams(data, frames, depth) if running is None else (running.split, running.parts)
+    knots = read_running(parts[0], (row_groups(frames, depth)[0], cols), _knot_chunk(depth, frames), k_lo,
+                         k_hi + 1, None if running is None else running.knots)
     y = np.zeros((hi - lo + 1, cols))
     kmin = np.minimum(tol_col * halves[top[groups]], BIG)
     y[::span] = knots * (2.0 * level_factor(lv, shrink) * kmin)
@@ -167,7 +195,7 @@ def decode_window(data: bytes, lev_data: bytes, tol_col: np.ndarray, halves: np.
         r = np.minimum(pos, frames - 1) - min(lo, frames - 1)
         return np.minimum(tol_col[None, :] * halves[lev[r]][:, groups], BIG)
 
-    details = _details(parts[1:], frames, depth, split, cols, ranges)
+    details = _details(parts[1:], frames, depth, split, cols, ranges, None if running is None else running.planes)
     for level in range(lv - 1, -1, -1):
         h = 1 << level
         t0, t1, q = details[level]
@@ -187,8 +215,8 @@ def decode_window(data: bytes, lev_data: bytes, tol_col: np.ndarray, halves: np.
     return y[a - lo:b - lo]
 
 
-def _details(parts: list[bytes], frames: int, depth: int, split: int, cols: int,
-             ranges: list[tuple[int, int]]) -> dict[int, tuple[int, int, np.ndarray]]:
+def _details(parts: list[bytes], frames: int, depth: int, split: int, cols: int, ranges: list[tuple[int, int]],
+             planes: dict[bytes, np.ndarray] | None = None) -> dict[int, tuple[int, int, np.ndarray]]:
     """Per level, the first and last sample index ``t`` within its reach and their integers ``(samples,
     columns)``, decoding only the segments holding them."""
     lv = plan(frames, depth)[0]
@@ -215,7 +243,7 @@ def _details(parts: list[bytes], frames: int, depth: int, split: int, cols: int,
         # the segments each level's rows lie in (those starting before its stop and ending after its first row)
         per = {level: np.flatnonzero((seg_first < r1) & (seg_stop > r0)).tolist() for level, r0, r1 in rows_wanted}
         idx = sorted({j for js in per.values() for j in js})
-        segs = decode_segments(parts[s], (rows, cols), starts, idx, max(r1 for _, _, r1 in rows_wanted))
+        segs = decode_segments(parts[s], (rows, cols), starts, idx, max(r1 for _, _, r1 in rows_wanted), planes)
         for level, r0, r1 in rows_wanted:
             mine = per[level]
             block = np.concatenate([segs[j] for j in mine])

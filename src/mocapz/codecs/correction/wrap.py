@@ -38,7 +38,7 @@ from mocapz.model.motion import AnyMotion, MarkerMotion, Motion
 Sections = dict[str, bytes]
 Encoder = Callable[..., Sections]
 Decoder = Callable[[Sections, ClipHeader], AnyMotion]
-WindowDecoder = Callable[[Sections, ClipHeader, int, int], AnyMotion | None]
+WindowDecoder = Callable[[Sections, ClipHeader, int, int, "dict[str, Any] | None"], AnyMotion | None]
 
 DEFAULT_ERROR_CM = 1.0  # the default target (codecs.target.DEFAULT_TARGET_TEXT); 1/170 of the body height
 # when the length unit is unknown
@@ -47,6 +47,7 @@ SEEKABLE = 3  # 2's integers with the streams laid out for random access (clips 
 CONTINUED = 4  # 2's with the frame before the clip as its first knot (a stream's block after the one before it)
 BASE_NONE, BASE_MODEL = 0, 1
 ROWS = 512  # rows per chunk of the wrap-around pass
+HALVES = 2.0 ** (-np.arange(61, dtype=np.float64) / 2.0)  # every level's share of a tolerance (the same numbers)
 
 
 def resolve_target(motion: AnyMotion, options: dict[str, Any]) -> Target:
@@ -212,14 +213,16 @@ def _prefix(header: ClipHeader, kind: int) -> np.ndarray:
 
 
 def apply_window(sections: Sections, header: ClipHeader, start: int, stop: int,
-                 base_window: WindowDecoder | None = None) -> AnyMotion | None:
+                 base_window: WindowDecoder | None = None, memo: dict[str, Any] | None = None) -> AnyMotion | None:
     """Frames ``[start, stop)`` of a clip coded with the seekable layout, decoding only the chunks they need (the
     values of a full decode, to the bit), or None where the whole clip must be decoded (another layout, a model
     base without ``base_window`` or one it cannot window, a zero-base window the correction leaves at zero:
     whether the motion keeps the source's decimals and quantum depends on the whole clip).
 
-    ``base_window(sections, header, start, stop)``: the model's own frames ``[start, stop)`` (or None) from its
-    sections (those of the correction left out), for a file on a model base."""
+    ``base_window(sections, header, start, stop, memo)``: the model's own frames ``[start, stop)`` (or None) from its
+    sections (those of the correction left out), for a file on a model base. ``memo``: a dict kept by the caller
+    for these very sections (a reader's), where the first window leaves what every window reads (the header,
+    the tolerances, what :class:`.window.Running` keeps) and later ones find it."""
     if "c.head" not in sections:
         return None
     try:
@@ -230,14 +233,21 @@ def apply_window(sections: Sections, header: ClipHeader, start: int, stop: int,
         if kind == BASE_MODEL:
             if base_window is not None:
                 base = base_window({k: v for k, v in sections.items() if not k.startswith("c.")}, header, start,
-                                   stop)
+                                   stop, memo)
             if base is None:
                 return None
-        groups = group_of(header)
-        codes = _codes(sections["c.codes"], groups.size)
-        halves = 2.0 ** (-np.arange(61, dtype=np.float64) / 2.0)  # every level's value (the same numbers)
-        y = window.decode_window(sections["c.res"], sections["c.levels"], bounds.tol_of(codes), halves, groups,
-                                 header.frames, levels, code / 100.0, start, stop)
+        kept = None if memo is None else memo.get("correction")
+        if kept is None:
+            groups = group_of(header)
+            tol_col = bounds.tol_of(_codes(sections["c.codes"], groups.size))
+            running = None if memo is None else window.open_running(sections["c.res"], sections["c.levels"], groups,
+                                                                      header.frames, levels)
+            kept = (groups, tol_col, running)
+            if memo is not None:
+                memo["correction"] = kept
+        groups, tol_col, running = kept
+        y = window.decode_window(sections["c.res"], sections["c.levels"], tol_col, HALVES, groups, header.frames,
+                                 levels, code / 100.0, start, stop, running)
         part = replace(header, frames=stop - start)
         gaps = sections.get("c.gaps")
         mask = None if gaps is None else unpack_mask(gaps, (header.frames, len(header.labels)))[start:stop]

@@ -25,12 +25,13 @@ def _encode(motion: Motion, **options: Any) -> dict[str, bytes]:
     return streaming.encode_block(motion, options) if streaming.in_stream(motion) else ENCODE(motion, **options)
 
 
-def _decode_window(sections: dict[str, bytes], header: ClipHeader, start: int, stop: int) -> AnyMotion | None:
+def _decode_window(sections: dict[str, bytes], header: ClipHeader, start: int, stop: int,
+                   memo: dict[str, Any] | None = None) -> AnyMotion | None:
     """Frames ``[start, stop)`` of a file in one block: the correction's seekable streams windowed, the model's
     IK solved on those frames only (:func:`.decode.decode_window`)."""
     if streaming.is_shared_block(sections):
         return None
-    return apply_window(sections, header, start, stop, base_window=decode_window)
+    return apply_window(sections, header, start, stop, base_window=decode_window, memo=memo)
 
 
 def _decode(sections: dict[str, bytes], header: ClipHeader) -> AnyMotion:

@@ -44,11 +44,13 @@ def decode(sections: dict[str, bytes], header: ClipHeader) -> Any:
     return _motion(header, channels)
 
 
-def decode_window(sections: dict[str, bytes], header: ClipHeader, start: int, stop: int) -> Any:
+def decode_window(sections: dict[str, bytes], header: ClipHeader, start: int, stop: int,
+                  memo: dict[str, Any] | None = None) -> Any:
     """Frames ``[start, stop)`` of a clip: every stream decoded, the IK solved on those frames only (the values
     of a full decode, to the bit: the compiled IK and Euler angles go frame by frame); None where the full
     decode is needed: a file without ``turns``, the temporal regulariser coupling the frames, or no compiled
-    kernels (NumPy's batched products sum a frame's values in an order that depends on the batch)."""
+    kernels (NumPy's batched products sum a frame's values in an order that depends on the batch). ``memo``: a
+    dict kept for these sections (a reader's), where the first window leaves the decoded streams."""
     skeleton, s = _checked(sections, header)
     if s.lam_temporal > 0 or turns.SECTION not in sections \
             or ikjit.kernels(header.frames - len(s.outliers)) is None:
@@ -66,7 +68,7 @@ def decode_window(sections: dict[str, bytes], header: ClipHeader, start: int, st
         lo, hi = np.array([start, stop]) - np.searchsorted(outliers, [start, stop])
         if hi > lo:
             rows = np.setdiff1d(np.arange(start, stop), outliers) - start
-            out[rows] = decode_span(skeleton, s, sections, frames - outliers.size, int(lo), int(hi))
+            out[rows] = decode_span(skeleton, s, sections, frames - outliers.size, int(lo), int(hi), memo)
     except KeyError as exc:
         raise FormatError(None, f"corrupted PGA stream (missing section {exc})") from None
     return _motion(replace(header, frames=stop - start), out)
@@ -214,12 +216,18 @@ def decode_rows(skeleton: Skeleton, s: PGASettings, sections: dict[str, bytes], 
     return rebuild(skeleton, sub, s, sub.targets, frames=n)  # the whole clip's path: its rows' values
 
 
-def decode_span(skeleton: Skeleton, s: PGASettings, sections: dict[str, bytes], n: int, lo: int, hi: int
-                ) -> np.ndarray:
+def decode_span(skeleton: Skeleton, s: PGASettings, sections: dict[str, bytes], n: int, lo: int, hi: int,
+                memo: dict[str, Any] | None = None) -> np.ndarray:
     """Channels ``(hi - lo, C)`` of the kept frames ``[lo, hi)`` of a file with a ``turns`` section and no
     temporal regulariser: those rows of :func:`decode_kept`, to the bit (every stream decoded, the IK solved on
-    those frames only, on the whole clip's path, the stored turns unwrapping them)."""
-    sub = decode_streams(skeleton, s, sections, n, (lo, hi))
+    those frames only, on the whole clip's path, the stored turns unwrapping them). ``memo``: a reader's, where
+    the streams are kept decoded whole (the first window decodes them) and later windows take their rows."""
+    if memo is None:
+        sub = decode_streams(skeleton, s, sections, n, (lo, hi))
+    else:
+        if "pga streams" not in memo:
+            memo["pga streams"] = decode_streams(skeleton, s, sections, n)
+        sub = _rows_of(memo["pga streams"], slice(lo, hi))
     return rebuild(skeleton, sub, s, sub.targets, frames=n, unwrap=stored_turns(skeleton, sections, n, lo))
 
 
