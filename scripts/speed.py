@@ -16,8 +16,9 @@ the default and the 1-s file: the full decode and ``decompress(data, frames=slic
 the 5 seeks; at least ``--repeat`` rounds, more while they fill 0.5 s, at most 20), each call's best kept; the
 seek is the median of the 5, reported as frames/s of the 20 frames and as a percentage of the full decode of
 the same file; the same 5 ranges are also read from a reader opened once (``mocapz.open(data)[a:a + 20]``: the
-file's container, checksum, layout and blocks read before the rounds), in the same rounds (default blocks: "% with
-an open reader"). Block cost: the size of the 1-s and the 4-s file over the one-block file, minus 1, in %. That
+file's container, checksum, layout and blocks read before the rounds; it keeps what a lossy clip's windows
+share, found by the rounds after the first), in the same rounds (default blocks: "% with an open reader"). Block
+cost: the size of the 1-s and the 4-s file over the one-block file, minus 1, in %. That
 process is stopped after ``--time-limit * (4 * --repeat + 6) + 60`` seconds.
 
 Usage::
@@ -491,7 +492,12 @@ def render(rows: list[dict[str, Any]], codecs: list[str], args: argparse.Namespa
         f"more while they fill {ROUNDS_FILL_S:g} s, at most {MAX_ROUNDS}), each call's best kept; the seek is "
         f"the median of the {SEEK_STARTS}, as frames/s of the {SEEK_FRAMES} frames (`xN`: over the lossless "
         f"codec's seek with its default blocks, same clip) and as a percentage of that full decode. Reading "
-        f"and checking the whole file (CRC-32, section table) is part of every seek. A clip shorter than two "
+        f"and checking the whole file (CRC-32, section table) is part of every seek. `% with an open reader`: "
+        f"the same ranges in the same rounds from one `mocapz.open(data)` (the file read and checked once, "
+        f"before the rounds); a reader keeps what the windows of a lossy clip in one block share (the "
+        f"correction's running values chunk by chunk, its zstd-packed streams unpacked, pga's trajectories), so "
+        f"the rounds after the first find these ranges' chunks decoded (a range in chunks no read has reached "
+        f"yet costs about what `decompress(frames=)` costs). A clip shorter than two "
         f"blocks is coded as one block (\"(one block)\": so at 1-s blocks every clip under 2 s). Size: the "
         f"1-s and the 4-s file's bytes over the one-block file's, minus 1. Over the CMU clips, the times and "
         f"the bytes of the clips where the measurement finished are added up. That process is stopped after "
