@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from conftest import data_path
+from conftest import correction_case, data_path
 
 import mocapz
 from mocapz.codecs.correction import bounds, chain, compiled, lifting
@@ -38,14 +38,8 @@ def _quantise(clip: Clip, tol: np.ndarray, compiled: bool) -> tuple[np.ndarray, 
 
 @pytest.mark.parametrize(("rel", "frames"), CLIPS)
 def test_kernels_equal_numpy(rel: str, frames: int | None, kernels_always: None) -> None:
-    m = mocapz.load(data_path(rel))
-    m = m if frames is None else m.slice(0, frames)
-    clip = Clip(m, True)
+    clip, t0, levels = correction_case(rel, frames, 16, 7, 4)
     lay = clip.layout
-    e = 1.0 / m.unit_cm if m.unit_cm else clip.body / 170.0
-    t0 = bounds.tol_of(bounds.code_for(np.where(lay.moving, 16 * lay.t_safe * e, bounds.TINY * lay.t_safe * e)))
-    rng = np.random.default_rng(7)  # some joints tightened on some frames, as the verification leaves them
-    levels = rng.integers(0, 4, size=(m.n_frames, lay.n_groups))
     tol = bounds.tolerances(t0, lay, levels)
     qa, ya, pa = _quantise(clip, tol, True)
     qb, yb, pb = _quantise(clip, tol, False)

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from conftest import data_path
+from conftest import correction_case, data_path
 
 import mocapz
 from mocapz.codecs.correction import bounds, chainround, compiled
@@ -25,14 +25,7 @@ def kernels_always(monkeypatch: pytest.MonkeyPatch) -> None:
 
 
 def _clip(rel: str, frames: int | None) -> tuple[Clip, np.ndarray, np.ndarray]:
-    m = mocapz.load(data_path(rel))
-    m = m if frames is None else m.slice(0, frames)
-    clip = Clip(m, True)
-    lay = clip.layout
-    e = 1.0 / m.unit_cm if m.unit_cm else clip.body / 170.0
-    t0 = bounds.tol_of(bounds.code_for(np.where(lay.moving, 4 * lay.t_safe * e, bounds.TINY * lay.t_safe * e)))
-    levels = np.random.default_rng(5).integers(0, 5, size=(m.n_frames, lay.n_groups))
-    return clip, t0, levels
+    return correction_case(rel, frames, 4, 5, 5)  # type: ignore[no-any-return]
 
 
 def _both(clip: Clip, x: np.ndarray, base: np.ndarray, tol: bounds.ColumnTolerances, depth: int,
