@@ -120,10 +120,11 @@ class Chain:
         decoded residual, as :func:`~mocapz.codecs.correction.lifting.quantise`, and the decoded positions
         ``(frames, points, 3)`` (the forward kinematics of ``base`` plus the decoded residual, joints then end
         sites: the loop has composed them already). A joint's decoded global rotations are kept only while a
-        joint or end site below it needs them. With the compiled kernels the decoded residual is the loop's own
-        array, kept for the next call on the same ``x`` and ``base`` (which updates it in place): callers do
-        not change it, and let it go before that call (or :meth:`forget` first). ``prefix`` ``(columns,)``: a
-        continued clip's (:func:`~mocapz.codecs.correction.lifting.quantise`)."""
+        joint or end site below it needs them. With the compiled kernels the decoded residual (and, where the
+        round runs in one call, :mod:`.chainround`, the integers) is the loop's own array, kept for the next call
+        on the same ``x`` and ``base`` (which updates it in place): callers do not change it, and let it go
+        before that call (or :meth:`forget` first). ``prefix`` ``(columns,)``: a continued clip's
+        (:func:`~mocapz.codecs.correction.lifting.quantise`)."""
         sk = self.skeleton
         frames, cols = x.shape
         kern = kernels(max(frames, self.work))
