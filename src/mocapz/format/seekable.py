@@ -252,8 +252,6 @@ def read_running(data: bytes, shape: tuple[int, int], chunk: int, a: int = 0, b:
         part = done[c]
         s, e = max(a, lo), min(b, lo + part.shape[0])
         out[s - a:e - a] = part[s - lo:e - lo]
-    if memo is None:
-        done.clear()
     return out
 
 
