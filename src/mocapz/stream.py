@@ -93,6 +93,7 @@ class StreamEncoder:
         self.energy = 0.0  # the original's acceleration energy so far
         self.spent = 0.0  # acceleration energy the corrections added so far (less what they smoothed)
         self.skated: dict = {}  # the feet's added speed so far (:func:`mocapz.codecs.correction.feet.speed_sums`)
+        self.edge: tuple | None = None  # the last frames as coded (:func:`mocapz.codecs.correction.context.tail`)
         self.crc = 0
         self.started = False
         self.closed = False
@@ -154,6 +155,8 @@ class StreamEncoder:
         # the clip so far, as the block's correction sees it: energy up to the block's end, the allowance spent
         cache = {"positions": (pos, ok), "energy": (self.energy, b), "jitter_spent": self.spent,
                  "skate_spent": self.skated, "stream": self.kept}
+        if self.edge is not None:
+            cache["edge"] = self.edge
         if self.blocks % self.key:
             cache["before"] = self.before
         else:
@@ -175,6 +178,7 @@ class StreamEncoder:
         self.blocks += 1
         self.spent = float(cache.get("jitter_spent", self.spent))
         self.skated = cache.get("skate_spent", self.skated)
+        self.edge = cache.get("edge", self.edge)
         self.past = np.concatenate([past, rows])[-self.history:]
         self.past_pos, self.past_ok = pos[-self.history:], ok[-self.history:]
         self.frames += len(rows)

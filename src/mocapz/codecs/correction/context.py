@@ -7,7 +7,9 @@ height (bounds when the length unit is unknown) and the added acceleration energ
 original's: a calm block alone would get almost none). Each is computed once on the whole clip (memoised in
 ``BlockOf.cache``) and cut to the block. The jitter budget is spent block after block: a block may add what
 the clip's allowance for the frames up to its end leaves after the blocks before it (what a block leaves
-unused passes on), so the clip's added jitter stays within the allowed fraction of its energy.
+unused passes on), so the clip's added jitter stays within the allowed fraction of its energy; a block's energy
+takes in the accelerations across its first edge, from the last frames of the block before as coded
+(:func:`edge`), as the file's jitter does.
 """
 
 from __future__ import annotations
@@ -22,6 +24,9 @@ from mocapz.codecs.target import ErrorMetric
 from mocapz.metrics.contacts import Contacts, find_contacts
 from mocapz.metrics.figures import frame_chunks
 from mocapz.model.motion import AnyMotion, BlockOf
+
+EDGE = 2  # frames before a block that the accelerations of its first frames take in (second differences)
+Edge = tuple[np.ndarray, np.ndarray, np.ndarray]  # decoded and original positions, present samples (:func:`tail`)
 
 
 def block_of(motion: AnyMotion) -> BlockOf | None:
@@ -86,14 +91,34 @@ def energy_reference(ctx: BlockOf | None, own: float, fraction: float) -> float:
     return max(left, 1e-9 * total)
 
 
-def spend(ctx: BlockOf | None, added: float, skated: dict | None = None) -> None:
+def spend(ctx: BlockOf | None, added: float, skated: dict | None = None, tail: Edge | None = None) -> None:
     """Record the acceleration energy the block's chosen correction added (less where it smoothed: the clip's
-    allowance is on the sum, as METRICS.md's jitter on the whole file) and the feet's added speed so far
-    (``skated``, :func:`.feet.speed_sums`; blocks are encoded in order)."""
+    allowance is on the sum, as METRICS.md's jitter on the whole file), the feet's added speed so far
+    (``skated``, :func:`.feet.speed_sums`) and its last frames (``tail``, :func:`tail`: the next block's
+    :func:`edge`); blocks are encoded in order."""
     if ctx is not None:
         ctx.cache["jitter_spent"] = ctx.cache.get("jitter_spent", 0.0) + added
         if skated is not None:
             ctx.cache["skate_spent"] = skated
+        if tail is not None:
+            ctx.cache["edge"] = tail
+
+
+def edge(ctx: BlockOf | None) -> Edge | None:
+    """The last :data:`EDGE` frames before a block as the blocks before it were coded (none for the first block
+    or a clip of its own): the accelerations at the block's first frames reach back to them, and the file's
+    jitter counts those as it counts any other (a block that left them out would add jitter at every edge)."""
+    return None if ctx is None else ctx.cache.get("edge")
+
+
+def tail(before: Edge | None, decoded: np.ndarray, original: np.ndarray, valid: np.ndarray) -> Edge:
+    """The last :data:`EDGE` frames of the clip so far (the frames ``before`` the block, then the block's own):
+    positions ``decoded`` and ``original`` ``(frames, points, 3)`` and present samples ``valid``
+    ``(frames, points)``; what the next block's :func:`edge` gives."""
+    if before is not None:
+        decoded, original, valid = (np.concatenate([b, x]) for b, x in zip(before, (decoded, original, valid),
+                                                                           strict=True))
+    return (np.array(decoded[-EDGE:]), np.array(original[-EDGE:]), np.array(valid[-EDGE:]))
 
 
 def carried_skate(ctx: BlockOf | None) -> dict | None:

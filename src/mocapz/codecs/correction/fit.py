@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from mocapz._memory import release_free_memory
-from mocapz.codecs.correction import bounds, context, feet, lifting, window
+from mocapz.codecs.correction import bounds, context, energy, feet, lifting, window
 from mocapz.codecs.correction.chain import Chain
 from mocapz.codecs.correction.compiled import kernels
 from mocapz.codecs.target import ErrorMetric, Errors
@@ -34,7 +34,6 @@ WIDEN = 2  # frames tightened on each side of a miss
 STALLED = 0.9  # feet whose added speed fell by less than this factor in a round: every joint above them tightened
 VERIFY = 1.0 - 1e-6  # verified against the bound less a hair (the decoder's angle wrapping, float rounding)
 MAX_ROUNDS = 40  # verification rounds (each raises levels by one; the safe levels end it earlier)
-JITTER = 0.045  # added acceleration energy allowed (fraction of the original's), tightened beyond
 JITTER_UP_TO_CM = 2.0  # targets up to this bound keep the added jitter under JITTER
 JITTER_LEVELS = 8  # how far beyond the safe levels the jitter may tighten (2 ** 4 finer)
 
@@ -74,6 +73,7 @@ class Correction:
     skated: feet.Carried | None = None  # a block's: the feet's added speed so far (:func:`.feet.speed_sums`)
     depth: int = 0  # lifting levels (knots 2 ** depth frames apart)
     settled: bool = True  # the verification rounds ended before MAX_ROUNDS (False: they ran out, levels high)
+    tail: context.Edge | None = None  # a block's: its last frames (:func:`.context.tail`), the next block's edge
 
 
 class Clip:
@@ -133,7 +133,7 @@ class Clip:
             clip, pos, chain.levers(clip.channels) if chain is not None else None)))
 
     def smooth_up_to(self) -> float:
-        """The largest bound at which the added jitter is held under :data:`JITTER` (file units): 2 cm, or
+        """The largest bound at which the added jitter is held under :data:`.energy.JITTER` (file units): 2 cm, or
         1/85 of the body height when the unit is unknown. Looser targets get the model's own smoothness."""
         unit = self.motion.unit_cm
         return JITTER_UP_TO_CM / unit if unit else self.body / 85.0
@@ -187,44 +187,14 @@ class Clip:
         return np.nan_to_num(r, copy=False, nan=0.0, posinf=0.0, neginf=0.0)
 
     def jitter(self, pos: np.ndarray) -> tuple[float, np.ndarray]:
-        """Added acceleration energy of decoded positions ``(frames, points, 3)`` (sum over frames and points of
-        ``|second difference|^2``, decoded / original - 1) and ``(frames, points)`` True on the samples whose
-        excess energy, largest first, makes up what is over :data:`JITTER`."""
-        out = np.zeros(pos.shape[:2], dtype=bool)
-        if pos.shape[0] < 3:
-            return 0.0, out
-        ea, eb = self._energies(pos)
-        total = context.energy_reference(self.whole, float(ea.sum()), JITTER)
-        if total <= 0:
-            return 0.0, out
-        jit = float(eb.sum()) / total - 1.0 if self.whole is None else (float(eb.sum()) - float(ea.sum())) / total
-        if jit <= JITTER:
-            return jit, out
-        excess = (eb - ea).ravel()
-        order = np.argsort(-excess)
-        need = (jit - 0.5 * JITTER) * total  # bring it well under the limit
-        n = int(np.searchsorted(np.cumsum(np.maximum(excess[order], 0.0)), need)) + 1
-        hit = np.zeros(excess.size, dtype=bool)
-        hit[order[:n]] = True
-        hit = hit.reshape(eb.shape)
-        out[1:-1] |= hit  # the second difference centred on frame t + 1 involves t, t + 1, t + 2
-        out[:-2] |= hit
-        out[2:] |= hit
-        return jit, out
+        """The added jitter of decoded positions ``(frames, points, 3)`` and the samples to tighten
+        (:func:`.energy.jitter`)."""
+        return energy.jitter(self.whole, self.positions, self.valid, pos)
 
     def added_energy(self, pos: np.ndarray) -> float:
-        """Acceleration energy decoded positions ``(frames, points, 3)`` add to the original's (0 without a
-        clip around this block: nothing to account for)."""
-        if self.whole is None or pos.shape[0] < 3:
-            return 0.0
-        ea, eb = self._energies(pos)
-        return float(eb.sum()) - float(ea.sum())
-
-    def _energies(self, pos: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """``(frames - 2, points)`` squared accelerations of the original and of decoded positions ``pos``
-        ``(frames, points, 3)``, 0 where a sample of the original is missing."""
-        ea, ok = context.acceleration_energy(self.positions, self.valid)
-        return ea, np.where(ok, context.squared_accelerations(pos), 0.0)
+        """Acceleration energy decoded positions ``(frames, points, 3)`` add to the original's (a block's;
+        :func:`.energy.added`)."""
+        return energy.added(self.whole, self.positions, self.valid, pos)
 
     def quantise(self, x: np.ndarray, base: np.ndarray, tol: np.ndarray | bounds.ColumnTolerances,
                  depth: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -296,6 +266,7 @@ def fit(clip: Clip, base: np.ndarray, e: float, relax_by: float = bounds.RELAX, 
     del x, y, cap  # what is left to do needs the positions' figures and the integers only
     errors, added = clip.metric.of_positions(pos), clip.added_energy(pos)
     skated = clip.skate_sums(pos)
+    tail = None if clip.whole is None else context.tail(context.edge(clip.whole), pos, clip.positions, clip.valid)
     del pos  # the integers are packed without it (the entropy coders' work space comes on top)
     release_free_memory()  # the rounds' freed arrays, not beside zstd's work space (mmap-ed, level 19)
     seek = window.seekable(frames)  # a long clip: its streams laid out for random access (c.head format 3)
@@ -307,7 +278,7 @@ def fit(clip: Clip, base: np.ndarray, e: float, relax_by: float = bounds.RELAX, 
         else lifting.pack(q, frames, depth, clip.prefix_of(base), lay.group),
     }
     size = sum(len(v) + 8 for v in sections.values())
-    return Correction(sections, size, errors, e, jit, added, skated, depth, settled)
+    return Correction(sections, size, errors, e, jit, added, skated, depth, settled, tail)
 
 
 Coding = tuple[np.ndarray, np.ndarray, np.ndarray]  # integers, decoded residual, decoded positions

@@ -134,7 +134,7 @@ def corrected(encode: Encoder, decode: Decoder, codec: str, declared: tuple[Opti
                               f"misses the target ({target.describe()}): it reaches distortion "
                               f"{cor.errors.distortion_pct:.4g} %, max error {cor.errors.max_error:.4g} file units "
                               "(the lossless codec gives the values back exactly)")
-        context.spend(clip.whole, cor.added, cor.skated)  # a block: what it used of the clip's allowances
+        context.spend(clip.whole, cor.added, cor.skated, cor.tail)  # a block: what it used of the clip's allowances
         # as the fit laid the streams out
         continued = clip.prefix_of(tried[best][2]) is not None
         fmt = SEEKABLE if window.seekable(motion.n_frames) else CONTINUED if continued else FORMAT
