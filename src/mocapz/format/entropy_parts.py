@@ -76,20 +76,31 @@ def encode(parts: list[np.ndarray], groups: np.ndarray) -> bytes:
     that is smaller (a joint's position channels, all zero, beside its rotations); with the groups all zero in a
     part masked (:data:`ZEROS`) where that is smaller still (the first of equals in that order)."""
     own_groups = np.arange(parts[0].shape[1])
-    candidates = [_encode(parts, groups, 0), _encode(parts, own_groups, PER_COLUMN)]
+    shared, own = _scale_codes(parts, groups), _scale_codes(parts, own_groups)  # each once for both layouts
+    candidates = [_encode(parts, groups, 0, shared), _encode(parts, own_groups, PER_COLUMN, own)]
     if any(not p.all() for p in parts if len(p)):  # a zero somewhere: a group may be all zero in a part
-        candidates += [_encode(parts, groups, ZEROS), _encode(parts, own_groups, PER_COLUMN | ZEROS)]
+        candidates += [_encode(parts, groups, ZEROS, shared), _encode(parts, own_groups, PER_COLUMN | ZEROS, own)]
     return min(candidates, key=len)
 
 
-def _encode(parts: list[np.ndarray], groups: np.ndarray, flag: int) -> bytes:
+def _scale_codes(parts: list[np.ndarray], groups: np.ndarray) -> list[np.ndarray | None]:
+    """Each part's half-octave scale codes ``(blocks, groups)`` under ``groups`` (None for an empty part)."""
+    gid, n = dense(groups, parts[0].shape[1])
+    return [_codes(p, gid, n) if len(p) else None for p in parts]
+
+
+def _encode(parts: list[np.ndarray], groups: np.ndarray, flag: int,
+            scale_codes: list[np.ndarray | None] | None = None) -> bytes:
+    """The stream of ``parts`` with ``flag`` (the groups given by it); ``scale_codes``: :func:`_scale_codes`
+    of the same groups, when made already."""
+    scale_codes = _scale_codes(parts, groups) if scale_codes is None else scale_codes
     if flag & ZEROS:
-        return _encode_masked(parts, groups, flag)
+        return _encode_masked(parts, groups, flag, scale_codes)
     cols = parts[0].shape[1]
     gid, n = dense(groups, cols)
     codes: list[np.ndarray] = []
-    for p in parts:  # an empty part's codes repeat the part's before (differences 0; the reader skips them)
-        codes.append(_codes(p, gid, n) if len(p) else
+    for c in scale_codes:  # an empty part's codes repeat the part's before (differences 0; the reader skips them)
+        codes.append(c if c is not None else
                      codes[-1][-1:].copy() if codes else np.full((1, n), HALF_BIAS, dtype=np.int64))
     d = _predicted(codes)
     pick = int(np.argmin([E._laplace_bits(np.abs(d)[:, None].astype(np.float64), None, np.array([s]))[0]
@@ -189,7 +200,8 @@ def _mask_model(a: int, b: int) -> tuple[np.ndarray, np.ndarray]:
     return np.array([bool(x & 8) for x in nibbles]), np.array([MASK_SCALES[x & 7] for x in nibbles])
 
 
-def _encode_masked(parts: list[np.ndarray], groups: np.ndarray, flag: int) -> bytes:
+def _encode_masked(parts: list[np.ndarray], groups: np.ndarray, flag: int,
+                   scale_codes: list[np.ndarray | None]) -> bytes:
     cols = parts[0].shape[1]
     gid, n = dense(groups, cols)
     full = [p for p in parts if len(p)]
@@ -197,7 +209,7 @@ def _encode_masked(parts: list[np.ndarray], groups: np.ndarray, flag: int) -> by
     ctx = _contexts(zeros)
     nibbles = _pick_mask_model(zeros, ctx)
     likely, scales = _mask_model(nibbles[0] | nibbles[1] << 4, nibbles[2])
-    codes = [_codes(p, gid, n) for p in full]
+    codes = [c for c in scale_codes if c is not None]
     last, diffs = np.full(n, HALF_BIAS, dtype=np.int64), []
     for i, (c, z) in enumerate(zip(codes, zeros, strict=True)):
         on = ~z
