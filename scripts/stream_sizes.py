@@ -11,7 +11,9 @@ coded per codec at max error 1 cm (the default target: feet held)
 
 and the stream is decoded with ``mocapz.decompress``: the column *target* says whether the max error holds on
 every point of every frame, *feet* the stream's ``foot_skate`` (METRICS.md, cm/s, on the whole decoded stream;
-blank where no foot is planted or the unit is unknown; the summary names the files over issue 11's 0.5 cm/s).
+blank where no foot is planted or the unit is unknown; the summary names the files over issue 11's 0.5 cm/s),
+*jitter* its added acceleration energy (``jitter_pct``, %, on the whole decoded stream; the summary names the files
+over the correction's allowance, :data:`mocapz.codecs.correction.energy.JITTER`).
 
 Usage::
 
@@ -33,6 +35,7 @@ import numpy as np
 
 import mocapz
 from mocapz.bench.corpus import default_data_dir, discover
+from mocapz.codecs.correction.energy import JITTER
 from mocapz.errors import MocapzError
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -69,7 +72,7 @@ def measure(path: Path, codec: str, frames: int) -> dict | None:
     met = rep.max_err <= limit * (1 + 1e-9) if limit is not None else None
     feet = rep.foot_skate * m.unit_cm if m.unit_cm and rep.foot_skate is not None else None
     return {"frames": m.n_frames, "fps": m.frame_rate, "offline": offline, "stream": len(data), "met": met,
-            "feet": feet}
+            "feet": feet, "jitter": rep.jitter_pct}
 
 
 def main() -> int:
@@ -89,7 +92,7 @@ def main() -> int:
              "of the offline file.", ""]
     summary = []
     for codec in args.codecs.split(","):
-        rows, rel, loose = [], [], []
+        rows, rel, loose, shaky = [], [], [], []
         for clip in clips:
             try:
                 r = measure(clip.path, codec, args.frames)
@@ -102,19 +105,24 @@ def main() -> int:
             rel.append(d)
             if r["feet"] is not None and r["feet"] > FEET_CM_S:
                 loose.append(clip.clip_id)
+            if r["jitter"] is not None and r["jitter"] > 100 * JITTER:
+                shaky.append(clip.clip_id)
             feet = "" if r["feet"] is None else f"{r['feet']:.3f}"
+            jitter = "" if r["jitter"] is None else f"{r['jitter']:.2f}"
             met = "n/a" if r["met"] is None else ("met" if r["met"] else "MISSED")
             rows.append(f"| {clip.clip_id} | {r['frames']:,} | {r['fps']:g} | {r['offline']:,} | {r['stream']:,} | "
-                        f"{100 * d:+.1f} % | {met} | {feet} |")
+                        f"{100 * d:+.1f} % | {met} | {feet} | {jitter} |")
             print(rows[-1], flush=True)
         within = sum(d <= 0.10 for d in rel)
-        over = ", ".join(loose) or "none"
+        over, jittery = ", ".join(loose) or "none", ", ".join(shaky) or "none"
         summary.append(f"| {codec} | {len(rel)} | {100 * statistics.median(rel):+.1f} % | {within} of {len(rel)} | "
-                       f"{100 * max(rel):+.1f} % | {over} |" if rel else f"| {codec} | 0 | | | | |")
+                       f"{100 * max(rel):+.1f} % | {over} | {jittery} |" if rel else f"| {codec} | 0 | | | | | |")
         lines += [f"## {codec}", "", "| clip | frames | fps | offline B | stream B | stream vs offline | target "
-                  "| stream's foot skate cm/s |", "|---|---|---|---|---|---|---|---|", *rows, ""]
+                  "| stream's foot skate cm/s | stream's jitter % |", "|---|---|---|---|---|---|---|---|---|", *rows,
+                  ""]
     head = ["## Summary", "", "| codec | files | median stream vs offline | within 10 % | largest | stream's feet over "
-            f"{FEET_CM_S} cm/s |", "|---|---|---|---|---|---|", *summary, "", f"Run time {time.time() - t0:.0f} s.", ""]
+            f"{FEET_CM_S} cm/s | stream's jitter over {100 * JITTER:g} % |", "|---|---|---|---|---|---|---|", *summary,
+            "", f"Run time {time.time() - t0:.0f} s.", ""]
     text = "\n".join(lines[:4] + head + lines[4:])
     args.out.write_text(text)
     print(text)

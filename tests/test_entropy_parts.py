@@ -67,15 +67,21 @@ def test_damaged_streams_are_format_errors() -> None:
             entropy_parts.decode(bad, rows, 30, GROUPS)
     with pytest.raises(FormatError):
         entropy_parts.decode(data, rows, 30, GROUPS[:-1])  # not the writer's groups
-    rng = np.random.default_rng(0)
-    for _ in range(200):  # any damage: a FormatError or parts of the shapes asked for, never anything else
+    _fuzz(data, rows, GROUPS, 200, 0)
+
+
+def _fuzz(data: bytes, rows: list[int], groups: np.ndarray, n: int, seed: int) -> None:
+    """Any damage (a random byte flipped, ``n`` times): a FormatError or parts of the shapes asked for, never
+    anything else."""
+    rng = np.random.default_rng(seed)
+    for _ in range(n):
         d = bytearray(data)
         d[int(rng.integers(0, len(d)))] ^= int(rng.integers(1, 256))
         try:
-            back = entropy_parts.decode(bytes(d), rows, 30, GROUPS)
+            back = entropy_parts.decode(bytes(d), rows, groups.size, groups)
         except FormatError:
             continue
-        assert [b.shape for b in back] == [(r, 30) for r in rows]
+        assert [b.shape for b in back] == [(r, groups.size) for r in rows]
 
 
 def test_lifting_reads_the_joint_layout_only_with_the_groups() -> None:
@@ -162,15 +168,7 @@ def test_damaged_masked_streams_are_format_errors() -> None:
     for bad in (data[:2], data[:-1], data + b"\0", data[:1] + bytes([0x0F]) + data[2:], data[:2] + b"\x10" + data[3:]):
         with pytest.raises(FormatError):
             entropy_parts.decode(bad, rows, 48, groups)
-    rng = np.random.default_rng(1)
-    for _ in range(300):  # any damage: a FormatError or parts of the shapes asked for, never anything else
-        d = bytearray(data)
-        d[int(rng.integers(0, len(d)))] ^= int(rng.integers(1, 256))
-        try:
-            back = entropy_parts.decode(bytes(d), rows, 48, groups)
-        except FormatError:
-            continue
-        assert [b.shape for b in back] == [(r, 48) for r in rows]
+    _fuzz(data, rows, groups, 300, 1)
 
 
 def test_a_30fps_streams_blocks_mask_their_still_channels(monkeypatch: pytest.MonkeyPatch) -> None:
