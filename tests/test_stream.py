@@ -66,10 +66,11 @@ def test_lossy_stream_meets_its_target_near_the_offline_size() -> None:
     # blocks continued); 129 B since a block repeating the names of the block before writes only their lengths,
     # 93 B (+10.2 %) since a block's lifting parts go into one range stream, 89 B (+9.7 %) since a repeat record's
     # kind says whether the block continues; 45 B (+4.9 %) since the feet's speed and the jitter are held on the
-    # stream's sums (a block held its feet on its own planted frames, and smoothing earned no allowance)
+    # stream's sums (a block held its feet on its own planted frames, and smoothing earned no allowance); 14 B
+    # (+1.5 %: 9,238 against 9,098 B) since the groups all zero in a block's lifting parts are masked
     offline = mocapz.compress(m, "quant", max_error="1cm")
-    assert len(data) - len(offline) <= 60 * math.ceil(m.n_frames / m.frame_rate)
-    assert len(data) <= 1.07 * len(offline)  # issue 13: within 10 % of the offline file
+    assert len(data) - len(offline) <= 30 * math.ceil(m.n_frames / m.frame_rate)
+    assert len(data) <= 1.04 * len(offline)  # issue 13: within 10 % of the offline file
 
 
 def test_decoder_yields_blocks_as_bytes_arrive() -> None:
@@ -168,3 +169,15 @@ def test_stream_benchmark_script_measures_what_it_reports() -> None:
     assert row["encode_fps"] > 0 and row["decode_fps"] > 0
     assert row["stream_bytes_same_frames"] > 0 and row["offline_bytes"] > 0
     assert "| lossless |" in script.render([row], "cmd")  # under a minute: the first-minute memory is n/a
+
+
+def test_a_marker_stream_holds_the_feet_the_whole_file_has() -> None:
+    """A stream cannot know which two markers the whole file's lowest will be (METRICS' feet): on btk's Dance.c3d
+    the blocks of its first seconds found markers 20/21 lowest, the whole file 24/25 (heels or toes), and the
+    stream added 0.84 cm/s on them; holding the two lowest pairs, each with its own floor, 0.02 cm/s."""
+    m = mocapz.load(data_path("other/markers/btkdata/c3d_samples/Dance.c3d"))
+    m.metadata.pop("c3d", None)  # a stream carries positions only
+    data = _stream(m, "quant", _random_sizes(4))
+    rep = mocapz.evaluate(m, mocapz.decompress(data))
+    assert rep.max_err_cm <= 1.0 + 1e-9
+    assert rep.foot_skate is not None and rep.foot_skate * m.unit_cm <= 0.5  # issue 11

@@ -12,9 +12,11 @@ takes the decoded last frame of the block before as its first knot (``c.head`` f
 absolute values of its own; every ``key`` seconds (default 10) a block decodes on its own, where a reader of the
 file can start (:func:`mocapz.blocking.iter_spans`). What a block's correction decides on the whole clip in a
 file (foot contacts, body height) it decides on the last :data:`HISTORY_S` seconds (more than the contacts' floor
-window, so a stream's contacts are the whole file's), and the jitter allowance is spent block after block against
-the energy seen so far; what the correction keeps from block to block (its column layout, so the tolerance codes
-repeat and are written once) lives in ``cache["stream"]``. So memory stays bounded whatever the stream's length.
+window, so a stream's contacts are the whole file's; of markers it holds the two lowest pairs, either of which the
+whole file's lowest two may be), and the jitter allowance is spent block after block against the energy seen so
+far (the accelerations across a block's first edge included); what the correction keeps from block to block (its
+column layout, so the tolerance codes repeat and are written once) lives in ``cache["stream"]``. So memory stays
+bounded whatever the stream's length.
 The bytes (:mod:`mocapz.format.stream`) are a ``.mcz`` that :func:`mocapz.decompress` reads.
 """
 

@@ -55,8 +55,9 @@ def up_axis(a: np.ndarray, valid: np.ndarray) -> int:
     return int(np.argmax(np.nanmedian(ext, axis=0)))
 
 
-def foot_points(motion: AnyMotion, a: np.ndarray, valid: np.ndarray, up: int) -> np.ndarray:
-    """Indices of the two lowest points on average (the feet's end sites or toe markers)."""
+def foot_points(motion: AnyMotion, a: np.ndarray, valid: np.ndarray, up: int, pairs: int = 1) -> np.ndarray:
+    """Indices of the two lowest points on average (the feet's end sites or toe markers); ``pairs`` 2: the four
+    lowest, the lowest two first."""
     if isinstance(motion, Motion) and motion.skeleton.end_sites:
         cand = np.arange(motion.skeleton.n_joints, motion.skeleton.n_points)
     else:
@@ -64,7 +65,7 @@ def foot_points(motion: AnyMotion, a: np.ndarray, valid: np.ndarray, up: int) ->
     with np.errstate(invalid="ignore"):
         h = np.nanmean(np.where(valid[:, cand], a[:, cand, up], np.nan), axis=0)
     h = np.where(np.isnan(h), np.inf, h)
-    return cand[np.argsort(h)[:2]]
+    return cand[np.argsort(h)[:2 * pairs]]
 
 
 @dataclass
@@ -95,14 +96,17 @@ class Contacts:
         return f
 
 
-def find_contacts(motion: AnyMotion, a: np.ndarray, valid: np.ndarray, unit_cm: float | None) -> Contacts:
+def find_contacts(motion: AnyMotion, a: np.ndarray, valid: np.ndarray, unit_cm: float | None,
+                  pairs: int = 1) -> Contacts:
     """The planted-foot steps of the original positions ``a`` ``(frames, points, 3)`` (file units),
-    ``valid`` ``(frames, points)`` marking present samples."""
+    ``valid`` ``(frames, points)`` marking present samples. ``pairs`` 2: the two lowest pairs of points, each
+    pair's steps as if it were the feet (its own floor): what a stream holds, which cannot know the pair the
+    whole file's lowest two will be (a marker set's heels or its toes)."""
     # the body only: a static floor root far from the body (Bandai-Namco) must not make a walk's
     # direction look like the vertical
     body = motion.skeleton.body_points() if isinstance(motion, Motion) else np.arange(a.shape[1])
     up = up_axis(a[:, body], valid[:, body]) if a.shape[0] else 1
-    feet = foot_points(motion, a, valid, up) if a.shape[0] else np.zeros(0, dtype=np.int64)
+    feet = foot_points(motion, a, valid, up, pairs) if a.shape[0] else np.zeros(0, dtype=np.int64)
     steps = np.zeros((max(a.shape[0] - 1, 0), feet.size), dtype=bool)
     if a.shape[0] < 2:
         return Contacts(up, feet, steps)
@@ -113,9 +117,11 @@ def find_contacts(motion: AnyMotion, a: np.ndarray, valid: np.ndarray, unit_cm: 
     h_tol = CONTACT_HEIGHT_CM / unit_cm if unit_cm else 0.03 * body
     v_tol = CONTACT_SPEED_CM_S / unit_cm if unit_cm else 0.3 * body
     back = max(int(round(FLOOR_WINDOW_S * fps)), 1)
-    # the floor is under both feet: a foot held up for seconds (a dancer's raised leg) is not on its own minimum
-    floor = np.min([floor_heights(np.where(valid[:, f], a[:, f, up], np.inf), back) for f in feet], axis=0)
     for i, f in enumerate(feet):
+        if i % 2 == 0:  # the floor is under both feet of a pair: a foot held up for seconds (a dancer's raised
+            # leg) is not on its own minimum
+            floor = np.min([floor_heights(np.where(valid[:, g], a[:, g, up], np.inf), back) for g in feet[i:i + 2]],
+                           axis=0)
         pa, ok = a[:, f], valid[:, f]
         speed = np.linalg.norm(np.diff(pa, axis=0), axis=1) * fps
         with np.errstate(invalid="ignore"):

@@ -23,7 +23,7 @@ from mocapz.codecs.correction.bounds import Layout, covers
 from mocapz.codecs.target import ErrorMetric
 from mocapz.metrics.contacts import Contacts, find_contacts
 from mocapz.metrics.figures import frame_chunks
-from mocapz.model.motion import AnyMotion, BlockOf
+from mocapz.model.motion import AnyMotion, BlockOf, MarkerMotion
 
 EDGE = 2  # frames before a block that the accelerations of its first frames take in (second differences)
 Edge = tuple[np.ndarray, np.ndarray, np.ndarray]  # decoded and original positions, present samples (:func:`tail`)
@@ -51,7 +51,10 @@ def contacts(ctx: BlockOf) -> Contacts:
         pos, valid = _whole(ctx)
         with warnings.catch_warnings():  # markers missing in every frame
             warnings.simplefilter("ignore", RuntimeWarning)
-            ctx.cache["contacts"] = find_contacts(ctx.clip, pos, valid, ctx.clip.unit_cm)
+            # a stream of markers holds the two lowest pairs: the whole file's feet (its lowest two on average,
+            # which the metric measures) may be the heels or the toes of the frames seen so far
+            pairs = 2 if "stream" in ctx.cache and isinstance(ctx.clip, MarkerMotion) else 1
+            ctx.cache["contacts"] = find_contacts(ctx.clip, pos, valid, ctx.clip.unit_cm, pairs)
     whole: Contacts = ctx.cache["contacts"]
     return Contacts(whole.up, whole.feet, whole.steps[ctx.start:max(ctx.stop - 1, ctx.start)])
 
