@@ -89,6 +89,20 @@ def _scale_codes(parts: list[np.ndarray], groups: np.ndarray) -> list[np.ndarray
     return [_codes(p, gid, n) if len(p) else None for p in parts]
 
 
+def _pick(d: np.ndarray) -> int:
+    """The index into :data:`~mocapz.format.entropy.DELTA_SCALES` coding the scale codes' differences ``d`` in
+    the fewest bits (the first of equals)."""
+    return int(np.argmin([E._laplace_bits(np.abs(d)[:, None].astype(np.float64), None, np.array([s]))[0]
+                          for s in E.DELTA_SCALES]))
+
+
+def _escapes(parts: list[np.ndarray]) -> bytes:
+    """The byte-plane stream of every part's escaped values (zig-zagged, in order), b"" without any."""
+    stacked = np.concatenate(parts)
+    esc = stacked[np.abs(stacked) >= E.LIMIT]
+    return E.pack_uint64(E.zigzag(esc)) if esc.size else b""
+
+
 def _encode(parts: list[np.ndarray], groups: np.ndarray, flag: int,
             scale_codes: list[np.ndarray | None] | None = None) -> bytes:
     """The stream of ``parts`` with ``flag`` (the groups given by it); ``scale_codes``: :func:`_scale_codes`
@@ -103,17 +117,14 @@ def _encode(parts: list[np.ndarray], groups: np.ndarray, flag: int,
         codes.append(c if c is not None else
                      codes[-1][-1:].copy() if codes else np.full((1, n), HALF_BIAS, dtype=np.int64))
     d = _predicted(codes)
-    pick = int(np.argmin([E._laplace_bits(np.abs(d)[:, None].astype(np.float64), None, np.array([s]))[0]
-                          for s in E.DELTA_SCALES]))
+    pick = _pick(d)
     enc = E.constriction.stream.queue.RangeEncoder()
     enc.encode(d.astype(np.int32), E._DELTA_MODEL, np.zeros(d.size), np.full(d.size, E.DELTA_SCALES[pick]))
     for p, c in zip(parts, codes, strict=True):
         if p.size:
             E._encode_values(enc, p, _scales(c, gid))
     body = enc.get_compressed().tobytes()
-    stacked = np.concatenate(parts)
-    esc = stacked[np.abs(stacked) >= E.LIMIT]
-    esc_bytes = E.pack_uint64(E.zigzag(esc)) if esc.size else b""
+    esc_bytes = _escapes(parts)
     return bytes([pick | flag]) + E.write_uvarint(len(esc_bytes)) + esc_bytes + E.write_uvarint(len(body)) + body
 
 
@@ -216,8 +227,7 @@ def _encode_masked(parts: list[np.ndarray], groups: np.ndarray, flag: int,
         diffs.append(np.diff(c[:, on].ravel(), prepend=HALF_BIAS) if not i else (c[:, on] - last[on]).ravel())
         last[on] = c[-1, on]
     d = np.concatenate(diffs) if diffs else np.zeros(0, np.int64)
-    pick = int(np.argmin([E._laplace_bits(np.abs(d)[:, None].astype(np.float64), None, np.array([s]))[0]
-                          for s in E.DELTA_SCALES])) if d.size else 0
+    pick = _pick(d) if d.size else 0
     enc = E.constriction.stream.queue.RangeEncoder()
     for z, k in zip(zeros, ctx, strict=True):
         sym = (z != likely[k]).astype(np.int32)
@@ -229,9 +239,7 @@ def _encode_masked(parts: list[np.ndarray], groups: np.ndarray, flag: int,
         if on.any():
             E._encode_values(enc, p[:, on], _scales(c, gid)[:, on])
     body = enc.get_compressed().tobytes()
-    stacked = np.concatenate(parts)
-    esc = stacked[np.abs(stacked) >= E.LIMIT]
-    esc_bytes = E.pack_uint64(E.zigzag(esc)) if esc.size else b""
+    esc_bytes = _escapes(parts)
     return bytes([pick | flag, nibbles[0] | nibbles[1] << 4, nibbles[2]]) + E.write_uvarint(len(esc_bytes)) \
         + esc_bytes + E.write_uvarint(len(body)) + body
 
