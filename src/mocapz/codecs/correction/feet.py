@@ -18,11 +18,14 @@ from mocapz.model.motion import AnyMotion, Motion
 
 
 def foot_groups(motion: AnyMotion, contacts: Contacts | None, positions: np.ndarray, n_groups: int,
-                reach: float) -> np.ndarray:
+                reach: float, aimed: np.ndarray | None = None) -> np.ndarray:
     """``(groups,)`` True on the joints above each foot point, up to and including the first with channels that
-    is ``reach`` (file units) or farther from it over the clip (median), the knee on a human leg whatever the
-    joints between (CMU: toe, ankle, knee; an ASF with a mid-foot joint: one more); markers: the foot markers.
-    ``positions`` ``(frames, points, 3)`` is the original's."""
+    is ``reach`` (file units) or farther from it over the clip (median) and that the closed loop aims (``aimed``
+    ``(joints,)``, :attr:`.chain.Chain.feedback`: coded against its decoded parent, such a joint takes back the
+    errors of the joints above it; None: any joint). The knee on a human leg whatever the joints between (CMU
+    BVH: toe, ankle, knee; an ASF with a mid-foot joint: one more); the hip where the knee turns about one axis
+    (CMU's ASF/AMC: toes, foot, tibia, femur), whose errors the knee cannot take back. Markers: the foot
+    markers. ``positions`` ``(frames, points, 3)`` is the original's."""
     out = np.zeros(n_groups, dtype=bool)
     if contacts is None:
         return out
@@ -35,7 +38,7 @@ def foot_groups(motion: AnyMotion, contacts: Contacts | None, positions: np.ndar
         while j >= 0:
             out[j] = True
             far = float(np.median(np.linalg.norm(positions[:, j] - positions[:, f], axis=1))) >= reach
-            if far and sk.channels[j]:
+            if far and sk.channels[j] and (aimed is None or aimed[j]):
                 break
             j = int(sk.parents[j])
     return out

@@ -27,7 +27,7 @@ from mocapz.model.motion import AnyMotion, Motion
 
 SKATE_CM_S = 0.3  # foot speed a planted foot may gain, frame to frame and over 0.1 s (cm/s; issue 11 allows 0.5)
 FOOT_REACH = 0.2  # the joints above a foot tightened for its skate reach the first this far from it (a share of the
-# body height: the knee), the closed loop aiming each at the original below it
+# body height: the knee) that the closed loop aims at the original below it (a one-axis knee: the hip)
 FOOT_START = 2  # levels those joints start tighter than the others on planted frames
 SHRINK = 0.85  # tolerance factor per lifting level (lifting.level_factor): smooth corrections, little jitter
 WIDEN = 2  # frames tightened on each side of a miss
@@ -154,7 +154,7 @@ class Clip:
     def foot_groups(self) -> np.ndarray:
         """``(groups,)`` True on the groups that hold a foot still (:func:`.feet.foot_groups`)."""
         return feet.foot_groups(self.motion, self.contacts, self.positions, self.layout.n_groups,
-                                FOOT_REACH * self.body)
+                                FOOT_REACH * self.body, None if self.chain is None else self.chain.feedback)
 
     def skate(self, pos: np.ndarray) -> tuple[float, np.ndarray]:
         """The largest speed decoded positions ``(frames, points, 3)`` add to a planted foot and the samples to
