@@ -24,7 +24,7 @@ from types import ModuleType
 
 import numpy as np
 
-from mocapz.codecs.correction import chainround, lifting
+from mocapz.codecs.correction import chainround, hinge, lifting
 from mocapz.codecs.correction.bounds import ColumnTolerances
 from mocapz.codecs.correction.compiled import kernels
 from mocapz.model.kinematics import euler_angles, euler_rotations, local_translations
@@ -83,9 +83,12 @@ class Chain:
                        for sl, chs, order in zip(self.slices, sk.channels, sk.rotation_order, strict=True)]
         # per joint, what every round of the loop asks for: the columns coded against their own original, the
         # axes and axis frame, its child joints and end sites
+        # the joints turning about one or two axes that aim their bone at the original child (:mod:`.hinge`)
+        self.hinge = [hinge.columns(sk, j, sl.start, moving, int(self.aim[j])) for j, sl in enumerate(self.slices)]
         self.plain = [np.arange(sl.start, sl.stop) if rot is None or not fb
                       else np.setdiff1d(np.arange(sl.start, sl.stop), rot)
                       for sl, rot, fb in zip(self.slices, self.rot_cols, self.feedback, strict=True)]
+        self.plain = [p if h is None else np.setdiff1d(p, h) for p, h in zip(self.plain, self.hinge, strict=True)]
         self.axes = [_axes(order) for order in sk.rotation_order]
         self.axis_of = [self._axis(j) for j in range(sk.n_joints)]
         self.children = [[c for c in range(sk.n_joints) if sk.parents[c] == j] for j in range(sk.n_joints)]
@@ -169,10 +172,14 @@ class Chain:
                 p_dec[:, j] = trans if p < 0 else p_dec[:, p] + np.einsum("fab,fb->fa", gp, trans)
             own = _moved(changed, plain, sl.start, again)
             moved_p.append(own if p < 0 else own | moved_p[p] | moved_g[p])
-            if rot is not None:
-                self._goal_residual(j, gp, p_dec, kern, base, x, moved_p[j] | moved_g[p])
-                _put(q, y, rot, *lifting.quantise(x[:, rot], tol[:, rot], levels, shrink, compiled,
-                                                    None if prefix is None else prefix[rot]), changed,
+            aimed = rot if rot is not None else self.hinge[j]  # a joint is one or the other (3 axes, or 1-2)
+            if aimed is not None:  # its residual against what aims it, under its decoded parent
+                if rot is not None:
+                    self._goal_residual(j, gp, p_dec, kern, base, x, moved_p[j] | moved_g[p])
+                else:
+                    self._hinge_residual(j, gp, p_dec, base, x)
+                _put(q, y, aimed, *lifting.quantise(x[:, aimed], tol[:, aimed], levels, shrink, compiled,
+                                                    None if prefix is None else prefix[aimed]), changed,
                      sl.start, again)
             # the decoded global rotation, on every frame (a few products per frame), and where it may have moved
             own = _moved(changed, np.arange(sl.start, sl.stop) if self.euler3[j] is None else self.euler3[j],
@@ -222,6 +229,23 @@ class Chain:
             angles = self._goal_angles(j, gp, p_dec, kern, rows)
             at = np.ix_(rows, rot)
             goal[at] = np.mod(angles[rows] - base[at] + half, self.period) - half
+
+    def _hinge_residual(self, j: int, gp: np.ndarray, p_dec: np.ndarray, base: np.ndarray, goal: np.ndarray) -> None:
+        """The residual of hinge ``j``'s rotation columns against the angles that aim its bone from the decoded
+        joint (positions ``p_dec`` ``(frames, joints, 3)``) at the original child under the decoded parent
+        (global rotations ``gp`` ``(frames, 3, 3)``) (:func:`.hinge.aim`), wrapped, into ``goal`` ``(frames,
+        columns)``, on every frame (a few products per frame)."""
+        sk, cols, child = self.skeleton, self.hinge[j], int(self.aim[j])
+        a = self.axis_of[j]
+        to_child = np.einsum("fba,fb->fa", gp, self.positions[:, child] - p_dec[:, j]) @ a  # in j's axis frame
+        near = self.values[:, cols]
+        angles, ok = hinge.aim(sk.rotation_order[j], a.T @ hinge.child_offset(sk, child), to_child,
+                               near * self.scale, MAX_TURN)
+        angles /= self.scale
+        angles += self.period * np.round((near - angles) / self.period)  # the original's turn (float rounding)
+        angles = np.where(ok[:, None], angles, near)
+        half = self.period / 2
+        goal[:, cols] = np.mod(angles - base[:, cols] + half, self.period) - half
 
     def _goal_angles(self, j: int, gp: np.ndarray, p_dec: np.ndarray, kern: ModuleType | None,
                      rows: np.ndarray | None = None) -> np.ndarray:
