@@ -10,8 +10,10 @@ original global rotation:
     R_local_target(j) = Rg_decoded(parent)^T  Rg_original(j)
 
 so a joint's global rotation is off by its own quantisation error only, and that error moves the points
-below it by at most ``|q| * |bone|`` (the bones leaving ``j``), not ``|q| * lever``. The decoder is
-unchanged: it adds the coded residuals to the channels as before (the loop is the encoder's alone).
+below it by at most ``|q| * |bone|`` (the bones leaving ``j``), not ``|q| * lever``. A joint that turns about
+one or two axes (a *hinge*: an ASF/AMC knee, foot, elbow) cannot take every rotation: its angles are the ones
+that point its bone at the original child (:mod:`.hinge`). The decoder is unchanged: it adds the coded
+residuals to the channels as before (the loop is the encoder's alone).
 
 Shapes: values ``(frames, columns)`` in the file's units (angles in the file's angle unit), rotations
 ``(frames, 3, 3)``.
@@ -81,10 +83,10 @@ class Chain:
         self.euler3 = [np.array([sl.start + chs.index(f"{a}rotation") for a in order], dtype=np.int64)
                        if len(order) == 3 and len(set(order.upper())) == 3 else None
                        for sl, chs, order in zip(self.slices, sk.channels, sk.rotation_order, strict=True)]
-        # per joint, what every round of the loop asks for: the columns coded against their own original, the
-        # axes and axis frame, its child joints and end sites
         # the joints turning about one or two axes that aim their bone at the original child (:mod:`.hinge`)
         self.hinge = [hinge.columns(sk, j, sl.start, moving, int(self.aim[j])) for j, sl in enumerate(self.slices)]
+        # per joint, what every round of the loop asks for: the columns coded against their own original, the
+        # axes and axis frame, its child joints and end sites
         self.plain = [np.arange(sl.start, sl.stop) if rot is None or not fb
                       else np.setdiff1d(np.arange(sl.start, sl.stop), rot)
                       for sl, rot, fb in zip(self.slices, self.rot_cols, self.feedback, strict=True)]
