@@ -24,8 +24,9 @@ def foot_groups(motion: AnyMotion, contacts: Contacts | None, positions: np.ndar
     ``(joints,)``, :attr:`.chain.Chain.feedback`: coded against its decoded parent, such a joint takes back the
     errors of the joints above it; None: any joint). The knee on a human leg whatever the joints between (CMU
     BVH: toe, ankle, knee; an ASF with a mid-foot joint: one more); the hip where the knee turns about one axis
-    (CMU's ASF/AMC: toes, foot, tibia, femur), whose errors the knee cannot take back. Markers: the foot
-    markers. ``positions`` ``(frames, points, 3)`` is the original's."""
+    (CMU's ASF/AMC: toes, foot, tibia, femur): such a knee aims its bone about that axis only (:mod:`.hinge`)
+    and lets the errors above it through. Markers: the foot markers. ``positions`` ``(frames, points, 3)`` is
+    the original's."""
     out = np.zeros(n_groups, dtype=bool)
     if contacts is None:
         return out
