@@ -9,7 +9,7 @@ import pytest
 from conftest import correction_case, data_path
 
 import mocapz
-from mocapz.codecs.correction import bounds, chain, compiled, lifting
+from mocapz.codecs.correction import bounds, chain, compiled, context, lifting, wrap
 from mocapz.codecs.correction.fit import Clip
 from mocapz.codecs.pga import ikjit
 
@@ -25,24 +25,32 @@ def kernels_always(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setattr(compiled, "LAZY_FRAMES", 0)
 
 
-def _quantise(clip: Clip, tol: np.ndarray, compiled: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _quantise(clip: Clip, tol: np.ndarray, compiled: bool, prefix: np.ndarray | None = None,
+              ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     old = ikjit.set_enabled(compiled)
     try:
         assert clip.chain is not None
         assert (chain.kernels(clip.motion.n_frames) is not None) == compiled
         base = np.zeros_like(clip.values)
-        return clip.chain.quantise(clip.residual(base), base, tol, 3, 0.85)
+        return clip.chain.quantise(clip.residual(base), base, tol, 3, 0.85, prefix)
     finally:
         ikjit.set_enabled(old)
 
 
+@pytest.mark.parametrize("continued", [False, True])
 @pytest.mark.parametrize(("rel", "frames"), CLIPS)
-def test_kernels_equal_numpy(rel: str, frames: int | None, kernels_always: None) -> None:
+def test_kernels_equal_numpy(rel: str, frames: int | None, continued: bool, kernels_always: None) -> None:
+    """Also for a continued block: the frames before it (the clip's own, a little off) give its first knots and
+    its ghosts (:func:`~.context.prefix`), which the one-call round (:mod:`.roundkernels`) reads as NumPy does."""
     clip, t0, levels = correction_case(rel, frames, 16, 7, 4)
     lay = clip.layout
     tol = bounds.tolerances(t0, lay, levels)
-    qa, ya, pa = _quantise(clip, tol, True)
-    qb, yb, pb = _quantise(clip, tol, False)
+    prefix = None
+    if continued:
+        before = clip.values[::-1][:40] + np.random.default_rng(1).normal(scale=0.01, size=(40, clip.values.shape[1]))
+        prefix = context.prefix(before, clip.rot, clip.period, True)
+    qa, ya, pa = _quantise(clip, tol, True, prefix)
+    qb, yb, pb = _quantise(clip, tol, False, prefix)
     assert np.array_equal(qa, qb)
     assert np.array_equal(ya, yb)
     scale = float(np.abs(pb).max())
@@ -78,6 +86,32 @@ def test_lifting_kernel_gives_the_numpy_bits(seed: int) -> None:
         assert np.array_equal(qa, qb)
         assert np.array_equal(ya, yb)
         assert np.array_equal(lifting.decode(qa, tol, depth, shrink), ya)
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_a_continued_lifting_gives_the_numpy_bits(seed: int, kernels_always: None) -> None:
+    """A continued clip's lifting (a stream's block: the first knot from the frame before, the levels' first
+    details predicted across the edge from the ghosts, some NaN) coded and decoded by the kernels
+    (:func:`~.liftkernels.details`, :func:`~.liftkernels.decode_details`) gives the NumPy path's bits."""
+    rng = np.random.default_rng(seed)
+    for _ in range(30):
+        frames, cols, depth = int(rng.integers(2, 300)), int(rng.integers(1, 6)), int(rng.integers(1, 7))
+        x = np.cumsum(rng.normal(size=(frames, cols)), axis=0)
+        prefix = np.full((cols, 1 + context.GHOST_LEVELS), np.nan)
+        prefix[:, 0] = x[0] + rng.normal(size=cols)
+        reach = int(rng.integers(0, context.GHOST_LEVELS + 1))
+        prefix[:, 1:1 + reach] = x[0][:, None] + rng.normal(size=(cols, reach))
+        prefix[rng.random(prefix.shape) < 0.1] = np.nan
+        groups = np.arange(cols)
+        lev = rng.integers(0, 6, size=(frames, cols))
+        tol_col = rng.uniform(0.05, 1.0, size=cols)
+        tol = tol_col[None, :] * wrap.HALVES[lev]
+        qa, ya = lifting.quantise(x, tol, depth, 0.85, compiled=True, prefix=prefix)
+        qb, yb = lifting.quantise(x, tol, depth, 0.85, compiled=False, prefix=prefix)
+        assert np.array_equal(qa, qb)
+        assert np.array_equal(ya, yb)
+        assert np.array_equal(lifting.decode(qa, tol, depth, 0.85, prefix=prefix), ya)  # NumPy
+        assert np.array_equal(lifting.decode_table(qa, tol_col, wrap.HALVES, lev, groups, depth, 0.85, prefix), ya)
 
 
 @pytest.mark.parametrize(("rel", "frames"), CLIPS)

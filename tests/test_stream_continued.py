@@ -67,7 +67,7 @@ def test_stream_blocks_continue_and_cost_less_than_blocks_alone() -> None:
     marks = [CONTINUES in s for s in _blocks(data)]
     assert marks == [i % 4 != 0 for i in range(len(marks))]  # a block on its own every 4 s (4 blocks)
     assert not any(CONTINUES in s for s in _blocks(alone))
-    assert all(s["c.head"][0] == 4 for s in _blocks(data)[1:4])  # correction format 4: continued
+    assert all(s["c.head"][0] == 5 for s in _blocks(data)[1:4])  # correction format 5: continued, across the edge
     # measured 11,380 B against 12,104 B (-6 %): the first knot rows and the seams' details
     assert len(data) <= 0.97 * len(alone)
     whole = mocapz.decompress(data)

@@ -23,6 +23,8 @@ from mocapz.model.motion import AnyMotion, BlockOf, Motion
 Sections = dict[str, bytes]
 
 MIN_DEFAULT_FRAMES = 128  # a block's own tables (predictors, scales) cost a few % below this
+BEFORE_FRAMES = 65  # decoded frames of the block before that a continued block is given: the last, its first knot,
+# and 2 ** 6 before it (the lossy codecs' deepest lifting predicts across the edge from them, codecs.correction)
 
 _SPEC = re.compile(r"^\s*(\d+(?:\.\d*)?|\.\d+)\s*(s|f|frames?|seconds?)?\s*$", re.IGNORECASE)
 
@@ -97,7 +99,7 @@ def iter_spans(decode_one: Callable[[Sections, ClipHeader], AnyMotion], parts: l
             piece = decode_block(decode_one, parts[i], header, b - a, before)
         except ValueError as exc:
             raise ValueError(f"block {i}: {exc}") from None
-        before = last_frame(piece)
+        before = last_frames(piece)
         if i >= meets[0]:
             yield piece.slice(max(start - a, 0), min(stop, b) - a)
 
@@ -105,8 +107,8 @@ def iter_spans(decode_one: Callable[[Sections, ClipHeader], AnyMotion], parts: l
 def decode_block(decode_one: Callable[[Sections, ClipHeader], AnyMotion], part: Sections, header: ClipHeader,
                  frames: int, before: np.ndarray | None) -> AnyMotion:
     """One block's motion (ValueError if it is not ``frames`` frames long); a block that continues the one before
-    it (its section :data:`~mocapz.format.blocks.CONTINUES`) is given that block's last decoded frame
-    ``before`` (:func:`last_frame`; ValueError without it)."""
+    it (its section :data:`~mocapz.format.blocks.CONTINUES`) is given that block's last decoded frames
+    ``before`` (:func:`last_frames`; ValueError without it)."""
     if blocks.CONTINUES in part:
         if before is None:
             raise ValueError("it continues the block before it, which is missing")
@@ -119,10 +121,11 @@ def decode_block(decode_one: Callable[[Sections, ClipHeader], AnyMotion], part: 
     return piece
 
 
-def last_frame(motion: AnyMotion) -> np.ndarray:
-    """``(columns,)`` the values of a motion's last frame (flattened; float64), what the block after it continues
-    from."""
-    return np.array(motion.values[-1], dtype=np.float64).reshape(-1)
+def last_frames(motion: AnyMotion) -> np.ndarray:
+    """``(frames, columns)`` the values of a motion's last :data:`BEFORE_FRAMES` frames (or all, if fewer;
+    flattened per frame; float64), what the block after it continues from."""
+    v = np.asarray(motion.values[-BEFORE_FRAMES:], dtype=np.float64)
+    return v.reshape(v.shape[0], -1)
 
 
 def joined(pieces: list[AnyMotion]) -> AnyMotion:

@@ -8,7 +8,8 @@
 
 A block is coded as soon as it is full (default 1 s of motion: the latency), as a clip of its own, as in a
 file coded in blocks (:mod:`mocapz.blocking`), but continuing the block before it: the lossy codecs' correction
-takes the decoded last frame of the block before as its first knot (``c.head`` format 4), so a block pays no
+takes the decoded last frame of the block before as its first knot and predicts its first details across the edge
+from the frames before that one (``c.head`` format 5), so a block pays no
 absolute values of its own; every ``key`` seconds (default 10) a block decodes on its own, where a reader of the
 file can start (:func:`mocapz.blocking.iter_spans`). What a block's correction decides on the whole clip in a
 file (foot contacts, body height) it decides on the last :data:`HISTORY_S` seconds (more than the contacts' floor
@@ -83,7 +84,7 @@ class StreamEncoder:
         key_frames = blocking.block_frames(key, template.frame_rate, 0.0)
         self.key = max(1, round(key_frames / self.block))  # blocks from one that decodes alone to the next
         self.kept: dict[str, Any] = {}  # what the codec keeps from block to block (cache["stream"])
-        self.before: np.ndarray | None = None  # the last frame as decoded (the next block continues from it)
+        self.before: np.ndarray | None = None  # the last frames as decoded (the next block continues from them)
         self.header: ClipHeader | None = None  # the decoder's header (the layout as written)
         self.blocks = 0
         self.pending: list[np.ndarray] = []
@@ -174,7 +175,7 @@ class StreamEncoder:
         if cache.get("continuable") and (self.blocks + 1) % self.key:
             with decoder_errors(self.info.name, None):
                 decoded = blocking.decode_block(self.info.decode, sections, self.header, len(rows), self.before)
-            self.before = blocking.last_frame(decoded)
+            self.before = blocking.last_frames(decoded)
         else:
             self.before = None
         self.blocks += 1
@@ -200,7 +201,7 @@ class StreamDecoder:
         self.header: ClipHeader | None = None
         self.info = None
         self.frames = 0
-        self.before: np.ndarray | None = None  # the last frame decoded (a block may continue from it)
+        self.before: np.ndarray | None = None  # the last frames decoded (a block may continue from them)
 
     def feed(self, data: bytes) -> list[AnyMotion]:
         """The motions of the blocks ``data`` completes (FormatError naming the stream if damaged)."""
@@ -214,7 +215,7 @@ class StreamDecoder:
             with decoder_errors(self.reader.stream.codec, self.path):  # type: ignore[union-attr]
                 motion = blocking.decode_block(self.info.decode, sections, header, frames,  # type: ignore[union-attr]
                                                self.before)
-            self.before = blocking.last_frame(motion)
+            self.before = blocking.last_frames(motion)
             self.frames += frames
             out.append(motion)
         return out

@@ -41,7 +41,8 @@ class ClipHeader:
         quantum: marker clips: the source's storage step (integer C3D: ``|POINT:SCALE|``), else ``None``;
             a motion made by :meth:`motion` keeps it only if its values are multiples of it.
         before: a block of a stream that continues the block before it: that block's decoded values of its
-            last frame, ``(columns,)`` (the values of :attr:`value_shape`'s last axes, flattened); else ``None``.
+            last frames, ``(frames, columns)`` (:func:`mocapz.blocking.last_frames`; the values of
+            :attr:`value_shape`'s last axes, flattened), or of its last frame, ``(columns,)``; else ``None``.
     """
 
     kind: Literal["skeleton", "markers"]

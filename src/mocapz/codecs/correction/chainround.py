@@ -131,8 +131,8 @@ def quantise(chain: Chain, kern: ModuleType, x: np.ndarray, base: np.ndarray, to
     moved = np.empty((2, sk.n_joints, frames), dtype=np.bool_)
     a = rp.arrays
     kern.run(x, base, tol.t0, tol.group, tol.levels, lo, halves, lv, n, factors, lifting.STEP, pre,
-             np.zeros(0) if prefix is None else np.asarray(prefix, dtype=np.float64), y, q, pos, slots, ends,
-             moved[0], moved[1], again, dirty, a["parents"], a["starts"], a["stops"], a["plain_ptr"],
+             np.zeros((0, 1)) if prefix is None else np.asarray(prefix, dtype=np.float64).reshape(cols, -1), y, q, pos,
+             slots, ends, moved[0], moved[1], again, dirty, a["parents"], a["starts"], a["stops"], a["plain_ptr"],
              a["plain_idx"], a["feedback"], a["rot_cols"], a["euler3"], a["e3_cols"], a["all_cols"], a["axes"],
              a["axis_frames"], a["turned"], a["aim"], a["ijk"], a["signs"], a["goal_of"], chain.goal_all,
              chain.positions, chain.values, a["pos_axis"], a["offsets"], a["slot"], a["end_slot"], chain.scale,

@@ -130,21 +130,45 @@ def carried_skate(ctx: BlockOf | None) -> dict | None:
 
 
 def continued(ctx: BlockOf | None) -> np.ndarray | None:
-    """A stream's block after the one before it: the decoded values ``(columns,)`` of the frame before the block
-    (:class:`mocapz.StreamEncoder` sets ``cache["before"]``), else None."""
+    """A stream's block after the one before it: the decoded values ``(frames, columns)`` of the frames before the
+    block (:class:`mocapz.StreamEncoder` sets ``cache["before"]``), else None."""
     return None if ctx is None else ctx.cache.get("before")
 
 
-def prefix(before: np.ndarray, rot: np.ndarray, period: float) -> np.ndarray:
+GHOST_LEVELS = 6  # lifting levels whose first detail a continued block predicts across its edge (fit's most)
+
+
+def prefix(before: np.ndarray, rot: np.ndarray, period: float, ghosts: bool = False) -> np.ndarray:
     """The first knot ``(columns,)`` of a continued block coded on a zero base (the correction alone): the decoded
     values of the frame before it (rotations wrapped into their turn, as the block's values are; NaN where a value
-    is missing or not finite). The encoder and the decoder compute it alike from the decoded frame. (On a model
-    base the residual of that frame is not the block's: the model's own first knot codes smaller there.)"""
-    r = np.array(before, dtype=np.float64)
+    is missing or not finite). The encoder and the decoder compute it alike from the decoded frames ``before``
+    (``(columns,)`` or ``(frames, columns)``, the last one the frame before the block). With ``ghosts``:
+    ``(columns, 1 + GHOST_LEVELS)``, the first knot then each lifting level ``l``'s ghost, the decoded value
+    ``2 ** (l + 1)`` frames before that frame (rotations unwrapped from the first knot; NaN where ``before`` does
+    not reach), from which :mod:`.lifting` predicts the level's first detail with the 4-point filter as inside a
+    clip: the block meets the one before it without a kink. (On a model base the residual of that frame is not
+    the block's: the model's own first knot codes smaller there.)"""
+    frames = np.atleast_2d(np.asarray(before, dtype=np.float64))
+    raw = frames[-1]
+    r = raw.copy()
+    half = period / 2
     if rot.any():
-        half = period / 2
         r[rot] = np.mod(r[rot] + half, period) - half
-    return np.where(np.isfinite(r), r + 0.0, np.nan)
+    first = np.where(np.isfinite(r), r + 0.0, np.nan)
+    if not ghosts:
+        return first
+    out = np.full((first.size, 1 + GHOST_LEVELS), np.nan)
+    out[:, 0] = first
+    for level in range(GHOST_LEVELS):
+        back = 1 << (level + 1)
+        if back >= frames.shape[0]:
+            break
+        d = frames[-1 - back] - raw
+        if rot.any():
+            d[rot] = np.mod(d[rot] + half, period) - half
+        g = first + d
+        out[:, 1 + level] = np.where(np.isfinite(g), g, np.nan)
+    return out
 
 
 def kept_layout(ctx: BlockOf, lay: Layout) -> Layout:

@@ -219,7 +219,7 @@ class Clip:
         """A continued block's first knot on ``base`` (:func:`.context.prefix`; the zero base only), else None."""
         if self.before is None or base is not self._zero:
             return None
-        return context.prefix(self.before, self.rot, self.period)
+        return context.prefix(self.before, self.rot, self.period, np.ndim(self.before) == 2)
 
     def positions_of(self, values: np.ndarray) -> np.ndarray:
         """Positions ``(frames, points, 3)`` of decoded values ``(frames, columns)``."""

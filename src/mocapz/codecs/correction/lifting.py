@@ -15,7 +15,9 @@ decoded sample is within ``tol`` of ``x`` (``|x - y| <= tol`` element-wise, up t
 
 With every detail zero the decoded curve is the Deslauriers-Dubuc subdivision of the knots: smooth (close to
 C2), so the correction adds little acceleration energy (jitter); a non-zero detail adds a local bump of the
-scale of its level. The integers go to the range coder (:func:`mocapz.format.entropy.encode_int_matrix`).
+scale of its level. A continued clip (a stream's block after the one before it) starts from the decoded frame
+before it, and its levels' first samples take the 4-point filter with the decoded frames before that one.
+The integers go to the range coder (:func:`mocapz.format.entropy.encode_int_matrix`).
 """
 
 from __future__ import annotations
@@ -55,10 +57,12 @@ def _pad(a: np.ndarray, n: int) -> np.ndarray:
     return np.concatenate([a, np.repeat(a[-1:], n - a.shape[0], axis=0)])
 
 
-def _predict(y: np.ndarray, h: int) -> tuple[slice, np.ndarray]:
+def _predict(y: np.ndarray, h: int, ghost: np.ndarray | None = None) -> tuple[slice, np.ndarray]:
     """New sample rows (the slice of the odd multiples of ``h``) of level spacing ``h`` and their predictions
     ``(m, columns)`` from the decoded samples of spacing ``2h`` in ``y`` ``(n, columns)`` (strided views, no
-    gathers)."""
+    gathers). ``ghost`` ``(columns,)``: a continued clip's decoded value ``2h`` rows before its first (NaN where
+    unknown), which gives its first new sample the 4-point filter too (no kink where the clip meets the one
+    before it)."""
     n = y.shape[0]
     new = slice(h, n - 1, 2 * h)
     m = len(range(h, n - 1, 2 * h))
@@ -68,7 +72,28 @@ def _predict(y: np.ndarray, h: int) -> tuple[slice, np.ndarray]:
     hi = min(m, (n - 1 - 4 * h) // (2 * h) + 1)
     if hi > 1:
         pred[1:hi] = (9.0 * (left[1:hi] + right[1:hi]) - (left[0 : hi - 1] + right[2 : hi + 1])) / 16.0
+    if ghost is not None and hi >= 1:
+        four = (9.0 * (left[0] + right[0]) - (ghost + right[1])) / 16.0
+        pred[0] = np.where(np.isnan(ghost), pred[0], four)
     return new, pred
+
+
+def split_prefix(prefix: np.ndarray | None) -> tuple[np.ndarray | None, np.ndarray | None]:
+    """A continued clip's first knot ``(columns,)`` and its ghosts ``(columns, levels)`` (level ``l``'s: the decoded
+    value ``2 ** (l + 1)`` rows before the first knot, NaN where unknown) from ``prefix`` ``(columns,)`` (no
+    ghosts) or ``(columns, 1 + levels)`` (:func:`.context.prefix`)."""
+    if prefix is None or prefix.ndim == 1:
+        return prefix, None
+    return prefix[:, 0], prefix[:, 1:]
+
+
+def _ghost(ghosts: np.ndarray | None, level: int) -> np.ndarray | None:
+    return None if ghosts is None or level >= ghosts.shape[1] else ghosts[:, level]
+
+
+def _kernel_ghosts(ghosts: np.ndarray | None, cols: int) -> np.ndarray:
+    """The ghosts as the compiled kernels take them: ``(levels, columns)``, ``(0, columns)`` for none."""
+    return np.zeros((0, cols)) if ghosts is None else np.ascontiguousarray(ghosts.T, dtype=np.float64)
 
 
 def quantise(x: np.ndarray, tol: np.ndarray, levels: int, shrink: float = 1.0,
@@ -82,9 +107,12 @@ def quantise(x: np.ndarray, tol: np.ndarray, levels: int, shrink: float = 1.0,
     ``prefix`` ``(columns,)``: a continued clip (a stream's block after the one before it): the decoded value of
     the frame before the first, known to the decoder, is the first knot (:func:`grid`); the integers' first row
     is then zero and not stored (:func:`pack`), but on the columns where the prefix is NaN (a marker missing in
-    that frame), whose first knot is coded as in a clip of its own.
+    that frame), whose first knot is coded as in a clip of its own. ``(columns, 1 + levels)``: the same, with
+    each level's ghost (:func:`split_prefix`), from which the level's first new sample is predicted as inside a
+    clip: the decoded curve meets the one before it without a kink.
     """
     frames, cols = x.shape
+    prefix, ghosts = split_prefix(prefix)
     x, tol = grid(x, prefix), grid(tol, prefix)
     lv, n = plan(x.shape[0], levels)
     xp, tp = _pad(x, n), _pad(np.minimum(tol, BIG), n)
@@ -105,12 +133,13 @@ def quantise(x: np.ndarray, tol: np.ndarray, levels: int, shrink: float = 1.0,
         q = np.empty((n, cols), dtype=np.int64)
         q[:len(q0)] = np.diff(q0, axis=0, prepend=0)
         factors = np.array([level_factor(level, shrink) for level in range(lv)])
-        kern.details(np.ascontiguousarray(xp), np.ascontiguousarray(tp), y, q, lv, factors, STEP, len(q0))
+        kern.details(np.ascontiguousarray(xp), np.ascontiguousarray(tp), y, q, lv, factors, STEP, len(q0),
+                     _kernel_ghosts(ghosts, cols))
         return q, y[rows]
     parts = [np.diff(q0, axis=0, prepend=0)]
     for level in range(lv - 1, -1, -1):
         h = 1 << level
-        idx, pred = _predict(y, h)
+        idx, pred = _predict(y, h, _ghost(ghosts, level))
         t = level_factor(level, shrink) * tp[idx]
         step = STEP * t
         d = xp[idx] - pred
@@ -166,6 +195,7 @@ def pack(q: np.ndarray, frames: int, levels: int, prefix: np.ndarray | None = No
     is then given the same)."""
     if not q.shape[1]:
         return b""
+    prefix = split_prefix(prefix)[0]
     continued, head = prefix is not None, b""
     if prefix is not None:
         free = np.isnan(prefix)
@@ -203,6 +233,7 @@ def read(data: bytes, frames: int, cols: int, levels: int, prefix: np.ndarray | 
          groups: np.ndarray | None = None) -> np.ndarray:
     """The integers of :func:`pack` for a clip of ``frames`` x ``cols`` values (each stream's shape is checked
     before anything is allocated), for a continued clip the same ``prefix``."""
+    prefix = split_prefix(prefix)[0]
     continued = prefix is not None
     if cols == 0:
         return np.zeros((0, 0), dtype=np.int64)
@@ -241,12 +272,13 @@ def decode(q_all: np.ndarray, tol: np.ndarray, levels: int, shrink: float = 1.0,
            prefix: np.ndarray | None = None) -> np.ndarray:
     """Inverse of :func:`quantise`: the decoded residual ``(frames, columns)`` from the integers (:func:`read`)
     and the same ``tol``, ``levels``, ``shrink`` and ``prefix``."""
-    return _decode_grid(q_all, grid(tol, prefix), levels, shrink, prefix)
+    return _decode_grid(q_all, grid(tol, split_prefix(prefix)[0]), levels, shrink, prefix)
 
 
 def _decode_grid(q_all: np.ndarray, tol: np.ndarray, levels: int, shrink: float, prefix: np.ndarray | None
                  ) -> np.ndarray:
     """:func:`decode` from the tolerances of the lifting's rows (:func:`grid`)."""
+    prefix, ghosts = split_prefix(prefix)
     n_rows, cols = tol.shape
     rows = slice(0, n_rows) if prefix is None else slice(1, n_rows)
     if cols == 0:
@@ -261,7 +293,7 @@ def _decode_grid(q_all: np.ndarray, tol: np.ndarray, levels: int, shrink: float,
     pos = n0
     for level in range(lv - 1, -1, -1):
         h = 1 << level
-        idx, pred = _predict(y, h)
+        idx, pred = _predict(y, h, _ghost(ghosts, level))
         m = pred.shape[0]
         q = q_all[pos : pos + m]
         if q.shape[0] != m:
@@ -285,7 +317,8 @@ def decode_table(q_all: np.ndarray, tol_col: np.ndarray, halves: np.ndarray, lev
     table ``halves``, indices ``lev`` ``(frames, groups)`` into it and ``groups`` ``(columns,)`` into ``lev``'s
     columns): the same bits. The compiled kernel (when loaded) reads the tolerances from the table, without a
     frames x columns array of them."""
-    lev = grid(lev, prefix)
+    first, ghosts = split_prefix(prefix)
+    lev = grid(lev, first)
     frames, cols = lev.shape[0], groups.size
     lv, n = plan(frames, levels)
     kern = kernels(frames, "liftkernels") if cols and lv and q_all.shape[0] >= n else None
@@ -296,9 +329,10 @@ def decode_table(q_all: np.ndarray, tol_col: np.ndarray, halves: np.ndarray, lev
     rows = np.minimum(np.arange(n0) * span, frames - 1)  # the knots (the last may lie in the padding)
     knots = np.minimum(tol_col[None, :] * halves[lev[rows]][:, groups], BIG)
     y = np.empty((n, cols))  # every row is written: the knots here, the details by the kernel
-    y[::span] = _knots(q_all[:n0], 2.0 * level_factor(lv, shrink) * knots.min(axis=0), prefix)
+    y[::span] = _knots(q_all[:n0], 2.0 * level_factor(lv, shrink) * knots.min(axis=0), first)
     factors = np.array([level_factor(level, shrink) for level in range(lv)])
     kern.decode_details(np.ascontiguousarray(q_all, dtype=np.int64), np.ascontiguousarray(tol_col, dtype=np.float64),
                         np.ascontiguousarray(halves, dtype=np.float64), np.ascontiguousarray(lev, dtype=np.int64),
-                        np.ascontiguousarray(groups, dtype=np.int64), y, lv, factors, STEP, n0, frames, BIG)
+                        np.ascontiguousarray(groups, dtype=np.int64), y, lv, factors, STEP, n0, frames, BIG,
+                        _kernel_ghosts(ghosts, cols))
     return y[:frames] if prefix is None else y[1:frames]

@@ -40,11 +40,25 @@ def _predict(y, i: int, h: int, c: int, four: bool) -> float:
 
 
 @jit
-def details(xp, tp, y, q, levels: int, factors, step_scale: float, row0: int) -> None:
+def _across(y, h: int, c: int, hi: int, level: int, ghost, pred: float) -> float:
+    """The first new sample's prediction (row ``h``) across a continued clip's edge: the 4-point filter with
+    level ``level``'s ghost ``ghost[level, c]`` (the decoded value ``2h`` rows before row 0) where there is one
+    and the row ``4h`` (``hi >= 1``), else ``pred`` (:func:`~.lifting._predict`)."""
+    if hi < 1 or level >= ghost.shape[0]:
+        return pred
+    g = ghost[level, c]
+    if math.isnan(g):
+        return pred
+    return (9.0 * (y[0, c] + y[2 * h, c]) - (g + y[4 * h, c])) / 16.0
+
+
+@jit
+def details(xp, tp, y, q, levels: int, factors, step_scale: float, row0: int, ghost) -> None:
     """Code every detail level, coarse to fine, into ``y`` and ``q`` (rows from ``row0``, after the knots).
 
     ``factors[l]``: the tolerance share of level ``l`` (:func:`~.lifting.level_factor`); ``step_scale``:
-    :data:`~.lifting.STEP`. ``y`` holds the decoded knots (every ``2 ** levels``-th row) on entry."""
+    :data:`~.lifting.STEP`. ``y`` holds the decoded knots (every ``2 ** levels``-th row) on entry. ``ghost``
+    ``(ghost levels, columns)``: a continued clip's ghosts (:func:`_across`; none: ``(0, columns)``)."""
     n, cols = xp.shape
     row = row0
     for level in range(levels - 1, -1, -1):
@@ -54,6 +68,8 @@ def details(xp, tp, y, q, levels: int, factors, step_scale: float, row0: int) ->
             for t in range(m):
                 i = h + 2 * h * t
                 pred = _predict(y, i, h, c, 1 <= t < hi)
+                if t == 0:
+                    pred = _across(y, h, c, hi, level, ghost, pred)
                 tol = f * tp[i, c]
                 step = step_scale * tol
                 d = xp[i, c] - pred
@@ -70,12 +86,12 @@ def details(xp, tp, y, q, levels: int, factors, step_scale: float, row0: int) ->
 
 @jit
 def decode_details(q, tol_col, halves, lev, groups, y, levels: int, factors, step_scale: float, row0: int,
-                   frames: int, big: float) -> None:
+                   frames: int, big: float, ghost) -> None:
     """:func:`~.lifting.decode_table`'s detail levels, coarse to fine, into ``y`` ``(n, columns)`` (the decoded
     knots on entry): the integers ``q`` (rows from ``row0``), the tolerance of frame ``t``, column ``c``
     ``tol_col[c] * halves[lev[t, groups[c]]]`` capped at ``big`` as ``np.minimum`` does (NaN stays NaN), rows
     past ``frames`` repeating the last as :func:`~.lifting._pad` does. The same float operations in the same
-    order as the NumPy path of :func:`~.lifting.decode`: the same bits."""
+    order as the NumPy path of :func:`~.lifting.decode`: the same bits. ``ghost``: as :func:`details`'."""
     n, cols = y.shape
     row = row0
     for level in range(levels - 1, -1, -1):
@@ -87,6 +103,8 @@ def decode_details(q, tol_col, halves, lev, groups, y, levels: int, factors, ste
             qr = q[row + t]
             for c in range(cols):
                 pred = _predict(y, i, h, c, 1 <= t < hi)
+                if t == 0:
+                    pred = _across(y, h, c, hi, level, ghost, pred)
                 tv = tol_col[c] * halves[lev_i[groups[c]]]
                 if tv > big:
                     tv = big

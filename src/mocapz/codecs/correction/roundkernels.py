@@ -51,7 +51,8 @@ def _lift(x, cols, t0, group, levels, lo, halves, lv: int, n: int, factors, step
     group[c]] - lo]`` capped at ``BIG``), written into ``y`` and ``q``; on a call redoing the one before
     (``again``) only the columns whose tolerances (``dirty_groups``) or residual (``dirty_x``) changed since (the
     others' integers and decoded values are those of that call, in ``q`` and ``y``), and ``changed`` ``(frames,
-    the joint's columns from start)`` marks the decoded values that moved."""
+    the joint's columns from start)`` marks the decoded values that moved. ``prefix`` ``(columns, 1 + ghost
+    levels)`` (read where ``pre``): a continued clip's first knots and ghosts (:func:`~.lifting.split_prefix`)."""
     frames = x.shape[0]
     todo = np.empty(cols.size, dtype=np.int64)
     m = 0
@@ -85,8 +86,8 @@ def _lift(x, cols, t0, group, levels, lo, halves, lv: int, n: int, factors, step
         origin = 0.0
         fixed = False  # a continued clip's first knot: the frame before, known to the decoder
         if pre:
-            fixed = not math.isnan(prefix[c])
-            origin = prefix[c] if fixed else 0.0
+            fixed = not math.isnan(prefix[c, 0])
+            origin = prefix[c, 0] if fixed else 0.0
         before = 0
         for i in range(knots):
             r = i * span
@@ -96,7 +97,11 @@ def _lift(x, cols, t0, group, levels, lo, halves, lv: int, n: int, factors, step
             yb[r, k] = origin + qi * step0 if pre else qi * step0
             qb[i, k] = qi - before
             before = qi
-    details(xp, tp, yb, qb, lv, factors, step_scale, knots)
+    ghost = np.full((prefix.shape[1] - 1 if pre else 0, m), np.nan)  # the columns' ghosts (liftkernels._across)
+    for g in range(ghost.shape[0]):
+        for k in range(m):
+            ghost[g, k] = prefix[todo[k], 1 + g]
+    details(xp, tp, yb, qb, lv, factors, step_scale, knots, ghost)
     for f in range(frames):
         for k in range(m):
             c = todo[k]

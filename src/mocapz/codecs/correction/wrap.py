@@ -45,6 +45,7 @@ DEFAULT_ERROR_CM = 1.0  # the default target (codecs.target.DEFAULT_TARGET_TEXT)
 FORMAT = 2  # 1: every lifting level within the whole tolerance; 2: a shrink factor per level (c.head)
 SEEKABLE = 3  # 2's integers with the streams laid out for random access (clips of window.SEEK_MIN frames and more)
 CONTINUED = 4  # 2's with the frame before the clip as its first knot (a stream's block after the one before it)
+ACROSS = 5  # 4's with each level's first detail predicted across the edge from the frames before (context.prefix)
 BASE_NONE, BASE_MODEL = 0, 1
 ROWS = 512  # rows per chunk of the wrap-around pass
 HALVES = 2.0 ** (-np.arange(61, dtype=np.float64) / 2.0)  # every level's share of a tolerance (the same numbers)
@@ -136,9 +137,10 @@ def corrected(encode: Encoder, decode: Decoder, codec: str, declared: tuple[Opti
                               "(the lossless codec gives the values back exactly)")
         context.spend(clip.whole, cor.added, cor.skated, cor.tail)  # a block: what it used of the clip's allowances
         # as the fit laid the streams out
-        continued = clip.prefix_of(tried[best][2]) is not None
-        fmt = SEEKABLE if window.seekable(motion.n_frames) else CONTINUED if continued else FORMAT
-        if continued:
+        pre = clip.prefix_of(tried[best][2])
+        fmt = SEEKABLE if window.seekable(motion.n_frames) else FORMAT if pre is None \
+            else ACROSS if pre.ndim == 2 else CONTINUED
+        if pre is not None:
             clip.whole.cache["continued"] = True  # type: ignore[union-attr]  # the stream marks the block
         if clip.whole is not None and zero_base and not fixed and not window.seekable(motion.n_frames):
             clip.whole.cache["continuable"] = True  # the next block may continue this one (it may take a zero base)
@@ -176,7 +178,7 @@ def apply(sections: Sections, header: ClipHeader, decode: Decoder) -> AnyMotion:
         codes = _codes(sections["c.codes"], cols)
         # every stream's shape is checked against the header before a frames x columns array is made
         n_groups = int(groups.max(initial=-1)) + 1
-        prefix = None if fmt != CONTINUED else _prefix(header, kind)
+        prefix = None if fmt not in (CONTINUED, ACROSS) else _prefix(header, kind, fmt == ACROSS)
         if fmt == SEEKABLE:
             lev = window.read_levels(sections["c.levels"], frames, n_groups)[1]
             q = window.read_res(sections["c.res"], frames, cols, levels)
@@ -199,17 +201,18 @@ def apply(sections: Sections, header: ClipHeader, decode: Decoder) -> AnyMotion:
     return _add(base_motion, y, header)
 
 
-def _prefix(header: ClipHeader, kind: int) -> np.ndarray:
-    """A continued block's first knot (:func:`.context.prefix`) from the decoded frame before it."""
+def _prefix(header: ClipHeader, kind: int, ghosts: bool) -> np.ndarray:
+    """A continued block's first knot, and with ``ghosts`` its levels' ghosts (:func:`.context.prefix`), from the
+    decoded frames before it."""
     before = header.before
     if kind != BASE_NONE:
         raise FormatError(None, "corrupted correction header (a continued block on a model base)")
     if before is None:
         raise FormatError(None, "a block that continues the block before it, decoded without it")
-    before = np.asarray(before, dtype=np.float64).reshape(-1)
-    if before.size != header.n_columns:
-        raise FormatError(None, f"the frame before the block has {before.size} values, not {header.n_columns}")
-    return context.prefix(before, header.rotation_mask, header.period)
+    before = np.atleast_2d(np.asarray(before, dtype=np.float64))
+    if before.shape[1] != header.n_columns:
+        raise FormatError(None, f"the frame before the block has {before.shape[1]} values, not {header.n_columns}")
+    return context.prefix(before if ghosts else before[-1], header.rotation_mask, header.period, ghosts)
 
 
 def apply_window(sections: Sections, header: ClipHeader, start: int, stop: int,
@@ -266,8 +269,8 @@ def _head(head: bytes) -> tuple[int, int, int, int]:
     kind, pos = read_uvarint(head, pos)
     levels, pos = read_uvarint(head, pos)
     code, pos = read_uvarint(head, pos) if fmt >= 2 else (100, pos)
-    if fmt > CONTINUED:
-        raise FormatError(None, f"correction format {fmt} is newer than this mocapz reads (up to {CONTINUED})")
+    if fmt > ACROSS:
+        raise FormatError(None, f"correction format {fmt} is newer than this mocapz reads (up to {ACROSS})")
     if fmt < 1 or kind not in (BASE_NONE, BASE_MODEL) or levels > 16 or not 1 <= code <= 100 or pos != len(head):
         raise FormatError(None, "corrupted correction header")
     return fmt, kind, levels, code
