@@ -29,9 +29,10 @@ DOCS = ROOT / "docs" / "benchmarks"
 NOTES = [
     "Reading these figures:",
     "",
-    "- Codecs and sweeps: `pga` at fixed settings (geodesics x levels of detail dropped; no rate-control "
-    "targets, which search for minutes on long clips), `patterns` at fixed clustering tolerances / bits / "
-    "theta, `quant` at error thresholds 0.03-30 cm, `subsample` by 1-24, `pca` keeping 90-99.999 % of the "
+    "- Codecs and sweeps: `pga`, `patterns` and `quant` at max-error targets 0.03-30 cm (what `mocapz "
+    "compress --max-error` gives: each codec's model at its own settings under its correction layer, planted "
+    "feet held; fixed model settings alone would all be corrected to the default 1 cm), `subsample` by 1-24, "
+    "`pca` keeping 90-99.999 % of the "
     "variance, `segpca` over (variance, components, key spacing). The exact settings are in the Settings "
     "tables; `mocapz.compress(motion, codec=NAME, **options)` with the same options gives the same file.",
     "- Baselines (`mocapz.codecs.baselines`): `subsample`, `pca` and `segpca` store float32 values with no "

@@ -45,8 +45,7 @@ def _record(doc: dict[str, Any], codec: str, **setting: Any) -> dict[str, Any]:
 # ---------------------------------------------------------------- the acceptance test
 @pytest.mark.parametrize(("codec", "setting", "flags"), [
     ("quant", {"max_error": "1cm"}, ["--max-error", "1cm"]),
-    ("pga", {"geodesics": 10, "lod_root": 2, "lod_effectors": 2},
-     ["--geodesics", "10", "--lod-root", "2", "--lod-effectors", "2"]),
+    ("pga", {"max_error": "1cm"}, ["--max-error", "1cm"]),
 ])
 def test_report_equals_compress_decompress_eval(tmp_path: Path, codec: str, setting: dict[str, Any],
                                                 flags: list[str]) -> None:
