@@ -9,7 +9,16 @@ import pytest
 from conftest import data_path
 
 import mocapz
-from mocapz.codecs.correction import context, lifting
+from mocapz import blocking
+from mocapz.codecs.correction import context, fit, lifting
+
+
+def test_the_frames_before_reach_every_ghost() -> None:
+    """The decoded frames a continued block is given (:data:`mocapz.blocking.BEFORE_FRAMES`, which knows no codec)
+    reach the ghost of the deepest lifting any clip takes (:func:`.fit.lifting_levels`, 6 levels at 256 fps and
+    above): ``2 ** 6`` frames before the first knot."""
+    assert context.GHOST_LEVELS >= fit.lifting_levels(1e6)
+    assert blocking.BEFORE_FRAMES >= 1 + 2 ** context.GHOST_LEVELS
 
 
 def _added(y: np.ndarray, x: np.ndarray) -> np.ndarray:
