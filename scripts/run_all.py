@@ -36,7 +36,10 @@ NOTES = [
     "variance, `segpca` over (variance, components, key spacing). The exact settings are in the Settings "
     "tables; `mocapz.compress(motion, codec=NAME, **options)` with the same options gives the same file.",
     "- Baselines (`mocapz.codecs.baselines`): `subsample`, `pca` and `segpca` store float32 values with no "
-    "entropy coding, as in the papers that used them as baselines; `quant` (every frame kept, per-track "
+    "entropy coding, as in the papers that used them as baselines; like every lossy codec here they carry the "
+    "correction layer, so each of their settings is measured as `mocapz compress --codec NAME` with that "
+    "setting gives it: the model plus the correction to the default target (max error 1 cm, planted feet "
+    "held), not the model alone as in those papers; `quant` (every frame kept, per-track "
     "step from an error threshold, range-reduced integers, entropy-coded time differences) is the "
     "game-engine style codec. The general-purpose compressors are run on the source file itself.",
     "- The cgspeed BVH files (`cmu/bvh`) start with an added T-pose frame. Codecs that interpolate in time "

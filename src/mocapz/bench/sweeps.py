@@ -2,8 +2,10 @@
 
 The lossy codecs with a correction layer (``pga``, ``patterns``, ``quant``) are swept over max-error targets,
 0.03-30 cm: what ``mocapz compress --max-error`` gives (their model's settings are then the codec's own choice;
-fixed settings alone would all be corrected to the default 1 cm and give one point). The baselines without one
-(``subsample``, ``pca``, ``segpca``) are swept over their settings.
+fixed settings alone would all be corrected to the default 1 cm and give one point). The baselines
+(``subsample``, ``pca``, ``segpca``) are swept over their settings, each corrected to the default target as well:
+their models differ, so their points do (a setting equal to the default leaves the codec free to take the
+correction alone).
 """
 
 from __future__ import annotations
