@@ -116,7 +116,7 @@ class StreamEncoder:
         have = sum(len(p) for p in self.pending)
         while have >= self.block:
             rows = np.concatenate(self.pending)
-            out += self._encode(rows[:self.block])
+            out += self._encode(rows[:self.block], last=False)
             self.pending = [rows[self.block:]]
             have -= self.block
         return bytes(out)
@@ -128,7 +128,7 @@ class StreamEncoder:
         out = bytearray(self._start())
         rows = np.concatenate(self.pending) if self.pending else self.template.values[:0]
         if len(rows):
-            out += self._encode(rows)
+            out += self._encode(rows, last=True)
         self.pending, self.closed = [], True
         end = framing.end_bytes(self.frames, {}, self.crc)
         return bytes(out + end)
@@ -143,7 +143,7 @@ class StreamEncoder:
         self.crc = zlib.crc32(head)
         return head
 
-    def _encode(self, rows: np.ndarray) -> bytes:
+    def _encode(self, rows: np.ndarray, last: bool) -> bytes:
         past = self.past[-self.history:]
         field = "channels" if isinstance(self.template, Motion) else "positions"
         window = replace(self.template, **{field: np.concatenate([past, rows])})
@@ -164,6 +164,8 @@ class StreamEncoder:
             cache["before"] = self.before
         else:
             cache["key"] = True  # a block that decodes alone: what the codec keeps from block to block starts anew
+        if not last and (self.blocks + 1) % self.key:
+            cache["followed"] = True  # the next block continues this one, from its last frames
         piece = window.slice(a, b)
         piece = replace(piece, metadata={**piece.metadata, "block_of": BlockOf(window, a, b, cache)})
         sections = self.info.encode(piece, **self.options)

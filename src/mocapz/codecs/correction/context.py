@@ -138,6 +138,12 @@ def continued(ctx: BlockOf | None) -> np.ndarray | None:
 GHOST_LEVELS = 6  # lifting levels whose first detail a continued block predicts across its edge (fit's most)
 
 
+def followed(ctx: BlockOf | None) -> bool:
+    """Whether the stream's next block continues this one (:class:`mocapz.StreamEncoder` sets
+    ``cache["followed"]``): its last frame is that block's first knot."""
+    return ctx is not None and bool(ctx.cache.get("followed"))
+
+
 def prefix(before: np.ndarray, rot: np.ndarray, period: float, ghosts: bool = False) -> np.ndarray:
     """The first knot ``(columns,)`` of a continued block coded on a zero base (the correction alone): the decoded
     values of the frame before it (rotations wrapped into their turn, as the block's values are; NaN where a value
