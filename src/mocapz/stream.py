@@ -9,7 +9,8 @@
 A block is coded as soon as it is full (default 1 s of motion: the latency), as a clip of its own, as in a
 file coded in blocks (:mod:`mocapz.blocking`), but continuing the block before it: the lossy codecs' correction
 takes the decoded last frame of the block before as its first knot and predicts its first details across the edge
-from the frames before that one (``c.head`` format 5), so a block pays no
+from the frames before that one (``c.head`` format 5; a skeleton block that the next one continues codes that last
+frame tighter, :data:`~mocapz.codecs.correction.fit.HANDOVER_LEVELS`), so a block pays no
 absolute values of its own; every ``key`` seconds (default 10) a block decodes on its own, where a reader of the
 file can start (:func:`mocapz.blocking.iter_spans`). What a block's correction decides on the whole clip in a
 file (foot contacts, body height) it decides on the last :data:`HISTORY_S` seconds (more than the contacts' floor
