@@ -91,7 +91,7 @@ def decode_details(q, tol_col, halves, lev, groups, y, levels: int, factors, ste
     knots on entry): the integers ``q`` (rows from ``row0``), the tolerance of frame ``t``, column ``c``
     ``tol_col[c] * halves[lev[t, groups[c]]]`` capped at ``big`` as ``np.minimum`` does (NaN stays NaN), rows
     past ``frames`` repeating the last as :func:`~.lifting._pad` does. The same float operations in the same
-    order as the NumPy path of :func:`~.lifting.decode`: the same bits. ``ghost``: as :func:`details`'."""
+    order as the NumPy path of :func:`~.lifting.decode`: the same bits. ``ghost``: as in :func:`details`."""
     n, cols = y.shape
     row = row0
     for level in range(levels - 1, -1, -1):
