@@ -1,4 +1,5 @@
-"""The ``effort`` option: bytes and encode time of each effort on the 14 shared CMU BVH clips at one target.
+"""The ``effort`` option: bytes and encode time of each effort on the 14 shared CMU BVH clips (or every readable
+shared file, ``--clips all``: BVH, ASF/AMC, C3D, TRC, their first 3,000 frames; pga skips marker files) at one target.
 
 Per codec, one process (numba loaded and every kernel compiled first, on 900 frames of 06_13), every clip
 encoded at each effort in turn, alternating (so a busy machine slows every effort alike): the file's bytes, the
@@ -6,8 +7,8 @@ encode seconds (the library call on a loaded clip), the max error over every joi
 frame (checked against the target) and the feet's added skate (METRICS.md). Writes
 ``docs/benchmarks/effort.md``::
 
-    python scripts/effort.py [--codecs quant,pga,patterns] [--efforts fast,default,best] [--target 1cm]
-                             [--clips 09_06,02_05] [--out FILE]
+    python scripts/effort.py [--codecs quant,pga,patterns] [--efforts fast,medium,best] [--target 1cm]
+                             [--clips 09_06,02_05 | all] [--out FILE]
 """
 
 from __future__ import annotations
@@ -18,11 +19,14 @@ import time
 from pathlib import Path
 
 import mocapz
+from mocapz.codecs import get_codec
 from mocapz.codecs.target import EFFORTS
 from mocapz.model.units import parse_length
 
 ROOT = Path(__file__).resolve().parents[1]
-DATA = ROOT.parent / "shared" / "data" / "cmu" / "bvh"
+SHARED = ROOT.parent / "shared" / "data"
+DATA = SHARED / "cmu" / "bvh"
+FIRST = 3000  # frames of a longer file measured with --clips all
 
 
 def measure(codec: str, efforts: list[str], target: str, clips: list[Path]) -> list[dict]:
@@ -33,8 +37,15 @@ def measure(codec: str, efforts: list[str], target: str, clips: list[Path]) -> l
     rows = []
     limit_cm = parse_length(target).in_file_units(1.0)  # centimetres
     for path in clips:
-        m = mocapz.load(path)
-        row: dict = {"clip": path.stem, "frames": m.n_frames}
+        try:
+            m = mocapz.load(path)
+        except mocapz.MocapzError:  # a shared file that is broken on purpose
+            continue
+        if m.kind not in get_codec(codec).kinds:  # pga: skeletons only
+            continue
+        m = m.slice(0, FIRST) if m.n_frames > FIRST else m
+        name = path.stem if path.parent == DATA else str(path.relative_to(SHARED))
+        row: dict = {"clip": name, "frames": m.n_frames}
         for e in efforts:
             t = time.perf_counter()
             data = mocapz.compress(m, codec, max_error=target, effort=e)
@@ -49,11 +60,12 @@ def measure(codec: str, efforts: list[str], target: str, clips: list[Path]) -> l
 
 
 def report(results: dict[str, list[dict]], efforts: list[str], target: str, args: str) -> str:
-    ref = "default" if "default" in efforts else efforts[0]
+    ref = "medium" if "medium" in efforts else efforts[0]
     head = ("| codec | " + " | ".join(f"{e}: bytes | {e}: frames/s" for e in efforts)
             + f" | bytes against {ref} | speed against {ref} |")
+    where = "every readable shared file" if "--clips all" in args else "the shared CMU BVH clips"
     lines = [
-        "# Effort: bytes and encode speed of each `effort` on the shared CMU BVH clips",
+        f"# Effort: bytes and encode speed of each `effort` on {where}",
         "",
         f"Written by `python scripts/effort.py {args}` ({time.strftime('%Y-%m-%d')}, a shared 2-core machine, "
         f"load average {os.getloadavg()[0]:.2f} at the end). Target: max error {target} with planted feet held; "
@@ -84,15 +96,18 @@ def report(results: dict[str, list[dict]], efforts: list[str], target: str, args
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--codecs", default="quant,pga,patterns")
-    ap.add_argument("--efforts", default="fast,default,best")
+    ap.add_argument("--efforts", default="fast,medium,best")
     ap.add_argument("--target", default="1cm")
-    ap.add_argument("--clips", default="", help="clip names (default: every CMU BVH clip)")
+    ap.add_argument("--clips", default="", help="clip names (default: every CMU BVH clip; all: every shared file)")
     ap.add_argument("--out", default=str(ROOT / "docs" / "benchmarks" / "effort.md"))
     a = ap.parse_args()
     efforts = a.efforts.split(",")
     if any(e not in EFFORTS for e in efforts):
         raise SystemExit(f"--efforts: each one of {', '.join(EFFORTS)}")
-    clips = [DATA / f"{c}.bvh" for c in a.clips.split(",")] if a.clips else sorted(DATA.glob("*.bvh"))
+    if a.clips == "all":
+        clips = sorted(p for p in SHARED.rglob("*") if p.suffix.lower() in (".bvh", ".amc", ".c3d", ".trc"))
+    else:
+        clips = [DATA / f"{c}.bvh" for c in a.clips.split(",")] if a.clips else sorted(DATA.glob("*.bvh"))
     results = {c: measure(c, efforts, a.target, clips) for c in a.codecs.split(",")}
     argv = f"--codecs {a.codecs} --efforts {a.efforts} --target {a.target}" + (f" --clips {a.clips}" if a.clips else "")
     Path(a.out).write_text(report(results, efforts, a.target, argv))

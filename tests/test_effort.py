@@ -51,10 +51,10 @@ def _max_error_cm(m: AnyMotion, data: bytes) -> float:
 
 @pytest.mark.slow
 def test_fast_codes_a_long_clip_once_and_best_is_never_larger(monkeypatch: pytest.MonkeyPatch) -> None:
-    m = mocapz.load(data_path("cmu/bvh/06_13.bvh"))  # 4,906 frames: the default chooses on two windows
+    m = mocapz.load(data_path("cmu/bvh/06_13.bvh"))  # 4,906 frames: medium chooses on two windows
     fits = _fits(monkeypatch)
     sizes = {}
-    for effort in ("fast", "default", "best"):
+    for effort in ("fast", "medium", "best"):
         fits.clear()
         data = mocapz.compress(m, codec="quant", max_error="1cm", effort=effort)
         sizes[effort] = len(data)
@@ -63,9 +63,9 @@ def test_fast_codes_a_long_clip_once_and_best_is_never_larger(monkeypatch: pytes
         if effort == "fast":
             assert fits == [lifting_levels(m.frame_rate) + FAST_DEPTH] == [_depth(data)]  # one fit, one depth
         else:
-            assert len(fits) >= 3  # the default's windows and its whole clip; best: each depth, whole
-    # a max error bound's fit depends on the setting alone, and best codes the default's choice among the others
-    assert sizes["best"] <= sizes["default"]
+            assert len(fits) >= 3  # medium's windows and its whole clip; best: each depth, whole
+    # a max error bound's fit depends on the setting alone, and best codes medium's choice among the others
+    assert sizes["best"] <= sizes["medium"]
 
 
 @pytest.mark.parametrize("codec", ["pga", "patterns"])
@@ -81,7 +81,7 @@ def test_fast_meets_the_target_with_a_model(codec: str, monkeypatch: pytest.Monk
 def test_an_unknown_effort_is_refused_on_one_line(tmp_path: Path) -> None:
     out = tmp_path / "x.mcz"
     res = mocapz_cli("compress", data_path(RUN), "-o", out, "--codec", "quant", "--effort", "max")
-    assert "fast, default, best" in assert_one_line_error(res, "effort", code=2) and not out.exists()
+    assert "fast, medium, best" in assert_one_line_error(res, "effort", code=2) and not out.exists()
 
 
 def test_the_effort_script_measures_and_reports(tmp_path: Path) -> None:
@@ -92,12 +92,12 @@ def test_the_effort_script_measures_and_reports(tmp_path: Path) -> None:
     sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "scripts"))
     import effort  # noqa: PLC0415
 
-    rows = effort.measure("quant", ["fast", "default"], "1cm", [data_path(RUN)])
+    rows = effort.measure("quant", ["fast", "medium"], "1cm", [data_path(RUN)])
     assert [r["clip"] for r in rows] == ["09_06"] and rows[0]["frames"] == 142
-    for e in ("fast", "default"):
+    for e in ("fast", "medium"):
         size, seconds, err_cm, _ = rows[0][e]
         assert size > 0 and seconds > 0 and err_cm <= 1.0 + 1e-9
-    text = effort.report({"quant": rows}, ["fast", "default"], "1cm", "--clips 09_06")
+    text = effort.report({"quant": rows}, ["fast", "medium"], "1cm", "--clips 09_06")
     assert f"| quant | {rows[0]['fast'][0]:,} |" in text and "| quant | 09_06 | 142 |" in text
 
 
@@ -122,3 +122,10 @@ def test_fast_falls_back_a_depth_when_its_rounds_run_out(monkeypatch: pytest.Mon
     assert [c[0] for c in made] == [5, 4] and not made[0][2]  # depth 5 ran out, so depth 4 was coded
     assert _depth(data) == min((c for c in made if c[3]), key=lambda c: c[1])[0]  # the smaller that meets 1 cm
     assert _max_error_cm(m, data) <= 1.0 + 1e-9
+
+
+def test_the_default_effort_is_fast() -> None:
+    """No ``effort`` given: fast (one lifting depth), the same bytes as asking for it."""
+    m = mocapz.load(data_path(RUN))
+    assert mocapz.compress(m, codec="quant") == mocapz.compress(m, codec="quant", effort="fast")
+    assert mocapz.compress(m, codec="quant") != mocapz.compress(m, codec="quant", effort="medium")

@@ -35,7 +35,7 @@ def test_encoder_writes_the_golden_bytes(entry: dict) -> None:
     assert hashlib.sha256(data).hexdigest() == entry["sha256"], f"{entry['file']}: the encoder's bytes moved"
 
 
-OLDER = [(d, e) for d in ("format1", "format2", "format3", "format4", "format5")
+OLDER = [(d, e) for d in ("format1", "format2", "format3", "format4", "format5", "format6")
          for e in json.loads((HERE / d / "golden.json").read_text())]
 
 
@@ -48,7 +48,8 @@ def test_earlier_formats_still_decode(folder: str, entry: dict) -> None:
     its bases were searched from the cheapest (the files whose bytes that moved); ``format4``, before the
     correction's parts of such a clip could go into one range stream (``lifting.JOINT``, the files that moved);
     ``format5``, the streams before a continued block predicted its first details across its edge (``c.head``
-    format 4, not 5)."""
+    format 4, not 5); ``format6``, the files that moved when a file's default ``effort`` became fast (encoder
+    only: a file of either effort decodes by the same decoder)."""
     data = (HERE / folder / entry["file"]).read_bytes()
     assert hashlib.sha256(data).hexdigest() == entry["sha256"]
     assert values_hash(mocapz.decompress(data)) == entry["values_sha256"]

@@ -30,7 +30,9 @@ DEFAULT_TARGET = "max error 1 cm on every joint, end site and marker of every fr
                  "(1/170 of the body height when the length unit is unknown)"
 DEFAULT_TARGET_TEXT = f"none given: the default target, {DEFAULT_TARGET}"
 
-EFFORTS = ("fast", "default", "best")  # the correction's search effort (option ``effort``)
+EFFORTS = ("fast", "medium", "best")  # the correction's search effort (option ``effort``; fast by default: over
+# the 41 shared files at 1 cm, fast against medium: quant and patterns -0.15 % bytes at 2.3x and 1.6x the speed,
+# pga +1.2 % at 2.1x; docs/benchmarks/effort.md)
 
 #: the target options, declared once and listed by every lossy codec (then ``hold_feet`` and ``effort``)
 TARGET_OPTIONS: tuple[Option, ...] = (
@@ -44,9 +46,9 @@ TARGET_OPTIONS: tuple[Option, ...] = (
            "the decoded feet add is verified (at most 0.3 cm/s, frame to frame and over 0.1 s) and the joints above "
            "them tightened until it holds", default=True),
     Option("effort", "choice", "how hard the correction searches for the smallest file meeting the target: fast "
-           "(one lifting depth, knots an eighth of a second apart, coded once), default (three depths, a long clip's "
-           "chosen on two 6-s windows), best (three depths, each coded on the whole clip); every one meets the target",
-           default="default", choices=EFFORTS),
+           "(one lifting depth, knots an eighth of a second apart, coded once), medium (three depths, a long clip's "
+           "chosen on two 6-s windows: about 2x the time, as often smaller as larger), best (three depths, each coded "
+           "on the whole clip); every one meets the target", default="fast", choices=EFFORTS),
 )
 TARGET_NAMES = ("max_error", "max_distortion", "max_arms")
 CORRECTION_NAMES = ("hold_feet", "effort")  # the correction layer's own options (not the model's settings)

@@ -21,7 +21,7 @@ RELAXES = (16.0,)  # relax_by tried: how far errors fall short of the worst case
 DEPTHS = (0, -1, -2)  # lifting levels tried, added to the clip's (knots a quarter, an eighth, a sixteenth of a
 # second apart: which codes a clip smallest depends on its motion)
 FAST_DEPTH = -1  # the one depth of effort "fast", added to the clip's (knots an eighth of a second apart): on 30
-# shared files (CMU and other BVH, ASF/AMC, C3D, TRC) at 1 cm it codes within 0.5 % of the default's search, the
+# shared files (CMU and other BVH, ASF/AMC, C3D, TRC) at 1 cm it codes within 0.5 % of effort medium's search, the
 # clip's own depth 1.2 % (CMU) to 19 % (others) larger
 SAMPLE_S = 6.0  # a long clip's settings are chosen on two windows of this many seconds, then coded whole
 
@@ -37,7 +37,7 @@ def search(clip: Clip, base: np.ndarray, target: Target, depth: int | None = Non
 
 
 def search_bases(clip: Clip, bases: list[np.ndarray], extra: list[int], target: Target,
-                 depth: int | None = None, effort: str = "default") -> tuple[int, Correction]:
+                 depth: int | None = None, effort: str = "medium") -> tuple[int, Correction]:
     """The base (``(frames, columns)`` values the correction is added to, each costing ``extra`` bytes of its
     own) and the correction coding the clip smallest, ``(index, correction)``. On a short clip every base is
     searched whole, the first one's settings as :func:`search` does, the others at the lifting depth it chose;

@@ -128,7 +128,7 @@ def corrected(encode: Encoder, decode: Decoder, codec: str, declared: tuple[Opti
                 and motion.missing.any() else {}
             tried.append((BASE_NONE, zero, clip.zero_base()))
         best, cor = search_bases(clip, [t[2] for t in tried], [_size(t[1]) for t in tried], target,
-                                 effort=options.get("effort") or "default")
+                                 effort=options.get("effort") or "fast")
         kind, base_sections, _ = tried[best]
         if not target.met(cor.errors):
             raise TargetError(f"{motion.metadata.get('path', motion.name)}: the {codec} codec with its correction "
