@@ -41,7 +41,7 @@ def measure(codec: str, efforts: list[str], target: str, clips: list[Path]) -> l
             m = mocapz.load(path)
         except mocapz.MocapzError:  # a shared file that is broken on purpose
             continue
-        if m.kind not in get_codec(codec).kinds:  # pga: skeletons only
+        if m.kind not in get_codec(codec).kinds or m.unit_cm is None:  # pga: skeletons; a target in cm: a known unit
             continue
         m = m.slice(0, FIRST) if m.n_frames > FIRST else m
         name = path.stem if path.parent == DATA else str(path.relative_to(SHARED))
