@@ -23,6 +23,7 @@ CLIPS = [("cmu/bvh/06_10.bvh", 700), ("cmu/asfamc/backflip.amc", None), ("other/
 def kernels_always(monkeypatch: pytest.MonkeyPatch) -> None:
     """The kernels whatever the clip's length (numpy below :data:`compiled.LAZY_FRAMES` otherwise)."""
     monkeypatch.setattr(compiled, "LAZY_FRAMES", 0)
+    monkeypatch.setattr(compiled, "LAZY_DECODE_FRAMES", 0)
 
 
 def _quantise(clip: Clip, tol: np.ndarray, compiled: bool, prefix: np.ndarray | None = None,

@@ -22,6 +22,7 @@ CLIPS = [("cmu/bvh/06_10.bvh", 700), ("other/asfamc/amcparser/walking.amc", 600)
 @pytest.fixture
 def kernels_always(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setattr(compiled, "LAZY_FRAMES", 0)
+    monkeypatch.setattr(compiled, "LAZY_DECODE_FRAMES", 0)
 
 
 def _clip(rel: str, frames: int | None) -> tuple[Clip, np.ndarray, np.ndarray]:

@@ -30,6 +30,7 @@ def _both(fn: object, *args: object) -> tuple[np.ndarray, np.ndarray]:
 def test_correction_decode_table_equal(monkeypatch: pytest.MonkeyPatch) -> None:
     pytest.importorskip("numba")
     monkeypatch.setattr(compiled, "LAZY_FRAMES", 0)
+    monkeypatch.setattr(compiled, "LAZY_DECODE_FRAMES", 0)
     rng = np.random.default_rng(5)
     for _ in range(40):
         frames, groups, depth = int(rng.integers(1, 700)), int(rng.integers(1, 5)), int(rng.integers(0, 7))

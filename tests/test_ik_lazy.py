@@ -57,7 +57,7 @@ def test_the_path_is_a_function_of_the_length_only() -> None:
     assert ikjit.kernels() is not None  # numba loaded
     assert ikjit.kernels(ikjit.LAZY_FRAMES - 1) is None
     assert ikjit.kernels(ikjit.LAZY_FRAMES) is not None
-    assert ikjit.LAZY_FRAMES == compiled.LAZY_FRAMES  # a clip under both loads no numba at all
+    assert ikjit.LAZY_FRAMES <= compiled.LAZY_FRAMES <= compiled.LAZY_DECODE_FRAMES  # under all: no numba at all
 
 
 def test_a_streams_blocks_take_the_compiled_ik_whatever_their_length(monkeypatch: pytest.MonkeyPatch) -> None:

@@ -65,7 +65,8 @@ QUARTER_BIAS = 32  # CODER_RANGE_DELTA's scales: s = 2 ** ((q - 32) / 4), q in 0
 QUARTER_TOP = 127
 DELTA_SCALES = (0.5, 1.0, 2.0, 4.0, 8.0, 16.0)  # Laplace scales of the scale codes' differences (one byte picks)
 CHUNK_VALUES = 1 << 16  # values range coded per call of the coder (its per-value arrays: peak memory)
-LAZY_VALUES = 1 << 20  # values decoded in one stream from which numba is loaded for the range decoder
+LAZY_VALUES = 10 << 20  # values decoded in one stream from which numba is loaded for the range decoder (constriction
+# decodes a 5,000-frame clip's streams in milliseconds: loading numba, about 0.5 s, pays on clips of about 100,000)
 
 
 _DELTA_MODEL = constriction.stream.model.QuantizedLaplace(-DELTA_LIMIT, DELTA_LIMIT) if HAVE_CONSTRICTION else None

@@ -321,7 +321,7 @@ def decode_table(q_all: np.ndarray, tol_col: np.ndarray, halves: np.ndarray, lev
     lev = grid(lev, first)
     frames, cols = lev.shape[0], groups.size
     lv, n = plan(frames, levels)
-    kern = kernels(frames, "liftkernels") if cols and lv and q_all.shape[0] >= n else None
+    kern = kernels(frames, "liftkernels", decoding=True) if cols and lv and q_all.shape[0] >= n else None
     if kern is None:
         return _decode_grid(q_all, tol_col[None, :] * halves[lev][:, groups], levels, shrink, prefix)
     span = 1 << lv
