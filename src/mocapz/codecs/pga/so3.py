@@ -36,17 +36,20 @@ def exp(w: np.ndarray) -> np.ndarray:
 def log(r: np.ndarray) -> np.ndarray:
     """Rotation vectors (angle in [0, pi]) from rotation matrices, stable near 0 and pi."""
     r = np.asarray(r, dtype=np.float64)
-    tr = np.trace(r, axis1=-2, axis2=-1)
+    tr = r[..., 0, 0] + r[..., 1, 1] + r[..., 2, 2]  # np.trace's sum, in its order (the same bits, 2.5x faster)
     cos = np.clip((tr - 1.0) / 2.0, -1.0, 1.0)
     th = np.arccos(cos)
-    vee = np.stack([r[..., 2, 1] - r[..., 1, 2], r[..., 0, 2] - r[..., 2, 0], r[..., 1, 0] - r[..., 0, 1]], -1)
+    vee = np.empty(r.shape[:-1])
+    np.subtract(r[..., 2, 1], r[..., 1, 2], out=vee[..., 0])
+    np.subtract(r[..., 0, 2], r[..., 2, 0], out=vee[..., 1])
+    np.subtract(r[..., 1, 0], r[..., 0, 1], out=vee[..., 2])
     sin = np.sin(th)
     small = th < 1e-4
     near_pi = th > np.pi - 1e-3
     fac = np.where(small, 0.5 + th * th / 12.0, th / (2.0 * np.where(small | near_pi, 1.0, sin)))
     w = fac[..., None] * vee
-    if np.any(near_pi):
-        w = np.where(near_pi[..., None], _log_near_pi(r, th, vee), w)
+    if np.any(near_pi):  # per rotation: computed on those near pi only
+        w[near_pi] = _log_near_pi(r[near_pi], th[near_pi], vee[near_pi])
     return w
 
 
