@@ -52,3 +52,32 @@ def test_a_one_shot_command_loads_no_numba_and_gives_the_same_bytes(codec: str, 
     warm = _run(codec, data_path(rel), "preload")
     assert warm["numba"] and warm["coded_with_numba"]
     assert (cold["bytes"], cold["values"]) == (warm["bytes"], warm["values"])
+
+
+BATCH = """
+import hashlib, json, sys
+import mocapz
+from mocapz.codecs.correction import compiled
+compiled.LAZY_WORK = int(sys.argv[2])
+m = mocapz.load(sys.argv[1])
+out = []
+for _ in range(3):  # a batch: the same short clip three times
+    out.append([hashlib.sha256(mocapz.compress(m, codec="quant")).hexdigest(), "numba" in sys.modules])
+print(json.dumps(out))
+"""
+
+
+def test_a_batch_of_short_clips_loads_the_kernels_once_it_has_coded_enough() -> None:
+    """Under ``LAZY_FRAMES`` a clip takes the NumPy path until the process has coded ``LAZY_WORK`` frame-rounds
+    (made small here: a batch of three 344-frame clips); the bytes stay the same."""
+    env = {k: v for k, v in os.environ.items() if k != "MOCAPZ_NO_NUMBA"} | {"PYTHONPATH": str(SRC)}
+    path = str(data_path("cmu/bvh/02_01.bvh"))
+    run = subprocess.run([sys.executable, "-c", BATCH, path, "1000"], env=env, capture_output=True, text=True,
+                         timeout=300, check=True)
+    clips = json.loads(run.stdout.strip().splitlines()[-1])
+    assert [c[1] for c in clips] == [True, True, True]  # 1,000 frame-rounds: loaded during the first clip
+    run = subprocess.run([sys.executable, "-c", BATCH, path, str(10 ** 9)], env=env, capture_output=True,
+                         text=True, timeout=300, check=True)
+    never = json.loads(run.stdout.strip().splitlines()[-1])
+    assert [c[1] for c in never] == [False, False, False]
+    assert {c[0] for c in clips} == {c[0] for c in never} and len({c[0] for c in clips}) == 1

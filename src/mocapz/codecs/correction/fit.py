@@ -17,7 +17,7 @@ import numpy as np
 from mocapz._memory import release_free_memory
 from mocapz.codecs.correction import bounds, context, energy, feet, lifting, window
 from mocapz.codecs.correction.chain import Chain
-from mocapz.codecs.correction.compiled import kernels
+from mocapz.codecs.correction.compiled import kernels, note_round
 from mocapz.codecs.target import ErrorMetric, Errors
 from mocapz.format.entropy import encode_int_matrix, pack_uint64
 from mocapz.metrics.contacts import find_contacts
@@ -205,11 +205,19 @@ class Clip:
         writes the feedback joints' residuals into ``x``). Returns the integers, the decoded residual (not to be
         changed: the closed loop keeps it for its next call) and the decoded positions ``(frames, points, 3)``."""
         prefix = self.prefix_of(base)
+        note_round(x.shape[0])
         if self.chain is not None:
             return self.chain.quantise(x, base, tol, depth, self.shrink, prefix)
         q, y = lifting.quantise(x, np.asarray(tol), depth, self.shrink, kernels(self.work, "liftkernels") is not None,
                                 prefix)
         return q, y, self.positions_of(base + y)
+
+    def of_job(self, frames: int) -> Clip:
+        """This clip as a part of a job of ``frames`` frames (a long clip's window): its kernels as the job's."""
+        self.work = max(self.work, frames)
+        if self.chain is not None:
+            self.chain.work = self.work
+        return self
 
     def zero_base(self) -> np.ndarray:
         """The zero base ``(frames, columns)``: a read-only view of one zero (no frames x columns array)."""

@@ -175,7 +175,7 @@ def _windows(clip: Clip) -> list[tuple[Clip, slice]]:
         a = max(0, centre - w // 2)
         sub = motion.slice(a, a + w)
         sub = replace(sub, metadata={k: v for k, v in sub.metadata.items() if k != "block_of"})
-        out.append((Clip(sub, clip.contacts is not None), slice(a, a + w)))
+        out.append((Clip(sub, clip.contacts is not None).of_job(clip.work), slice(a, a + w)))
     return out
 
 
