@@ -31,8 +31,8 @@ DEFAULT_TARGET = "max error 1 cm on every joint, end site and marker of every fr
 DEFAULT_TARGET_TEXT = f"none given: the default target, {DEFAULT_TARGET}"
 
 EFFORTS = ("fast", "medium", "best")  # the correction's search effort (option ``effort``; fast by default: over
-# the 41 shared files at 1 cm, fast against medium: quant and patterns -0.15 % bytes at 2.3x and 1.6x the speed,
-# pga +1.2 % at 2.1x; docs/benchmarks/effort.md)
+# the 39 shared files of a known length unit at 1 cm, fast against medium: quant -0.2 % bytes at 2.3x the speed,
+# patterns -0.2 % at 1.4x, pga +1.2 % at 2.1x; docs/benchmarks/effort.md)
 
 #: the target options, declared once and listed by every lossy codec (then ``hold_feet`` and ``effort``)
 TARGET_OPTIONS: tuple[Option, ...] = (
