@@ -33,6 +33,7 @@ DEFAULT_TARGET_TEXT = f"none given: the default target, {DEFAULT_TARGET}"
 EFFORTS = ("fast", "medium", "best")  # the correction's search effort (option ``effort``; fast by default: over
 # the 39 shared files of a known length unit at 1 cm, fast against medium: quant -0.2 % bytes at 2.3x the speed,
 # patterns -0.2 % at 1.4x, pga +1.2 % at 2.1x; docs/benchmarks/effort.md)
+DEFAULT_EFFORT = "fast"
 
 #: the target options, declared once and listed by every lossy codec (then ``hold_feet`` and ``effort``)
 TARGET_OPTIONS: tuple[Option, ...] = (
@@ -48,7 +49,7 @@ TARGET_OPTIONS: tuple[Option, ...] = (
     Option("effort", "choice", "how hard the correction searches for the smallest file meeting the target: fast "
            "(one lifting depth, knots an eighth of a second apart, coded once), medium (three depths, a long clip's "
            "chosen on two 6-s windows: about 2x the time, as often smaller as larger), best (three depths, each coded "
-           "on the whole clip); every one meets the target", default="fast", choices=EFFORTS),
+           "on the whole clip); every one meets the target", default=DEFAULT_EFFORT, choices=EFFORTS),
 )
 TARGET_NAMES = ("max_error", "max_distortion", "max_arms")
 CORRECTION_NAMES = ("hold_feet", "effort")  # the correction layer's own options (not the model's settings)

@@ -29,7 +29,7 @@ from mocapz.codecs.correction.fit import Clip, value_matrix
 from mocapz.codecs.correction.search import search_bases
 from mocapz.codecs.gaps import pack_mask, unpack_mask
 from mocapz.codecs.options import Length, Option
-from mocapz.codecs.target import CORRECTION_NAMES, TARGET_NAMES, Target
+from mocapz.codecs.target import CORRECTION_NAMES, DEFAULT_EFFORT, TARGET_NAMES, Target
 from mocapz.errors import FormatError, TargetError
 from mocapz.format.entropy import decode_int_matrix, read_uvarint, unpack_uint64, write_uvarint
 from mocapz.model.header import ClipHeader
@@ -128,7 +128,7 @@ def corrected(encode: Encoder, decode: Decoder, codec: str, declared: tuple[Opti
                 and motion.missing.any() else {}
             tried.append((BASE_NONE, zero, clip.zero_base()))
         best, cor = search_bases(clip, [t[2] for t in tried], [_size(t[1]) for t in tried], target,
-                                 effort=options.get("effort") or "fast")
+                                 effort=options.get("effort") or DEFAULT_EFFORT)
         kind, base_sections, _ = tried[best]
         if not target.met(cor.errors):
             raise TargetError(f"{motion.metadata.get('path', motion.name)}: the {codec} codec with its correction "
