@@ -91,3 +91,51 @@ def test_patterns_on_a_short_clip_is_no_larger_than_its_correction_alone() -> No
     patterns = mocapz.compress(m, "patterns", max_error="1cm")
     quant = mocapz.compress(m, "quant", max_error="1cm")
     assert len(patterns) <= len(quant) + 16, (len(patterns), len(quant))
+
+
+def _coded_nodes(monkeypatch: pytest.MonkeyPatch) -> list[int]:
+    from mocapz.codecs.patterns import bodies
+
+    calls: list[int] = []
+    real = bodies.code_node
+
+    def counted(*args, **kw):  # noqa: ANN002, ANN003, ANN202
+        calls.append(1)
+        return real(*args, **kw)
+
+    monkeypatch.setattr(bodies, "code_node", counted)
+    return calls
+
+
+@pytest.mark.parametrize(("name", "frames", "early"), [("cmu/bvh/02_05.bvh", 1855, True),
+                                                        ("cmu/bvh/06_13.bvh", 3000, False),
+                                                        ("cmu/bvh/09_06.bvh", 142, False)])
+def test_a_model_is_given_up_once_its_bytes_reach_the_correction_alones(name: str, frames: int, early: bool,
+                                                                        monkeypatch: pytest.MonkeyPatch) -> None:
+    """The patterns model is encoded only as far as it may give the smaller file: where its own sections reach
+    what the correction alone codes the clip in, its encoding stops (02_05's model is 2.4 times the correction
+    alone's file: part way through its body parts; 06_13's first 3,000 frames 1.3 times: after the last one,
+    before it is decoded); the file is byte for byte the one of a model encoded whole (the budget off), whichever
+    base wins (09_06's model base is the smaller)."""
+    from mocapz.codecs import budget
+
+    m = mocapz.load(data_path(name)).slice(0, frames)
+    calls = _coded_nodes(monkeypatch)
+    given_up = mocapz.compress(m, "patterns")
+    parts = len(calls)
+    calls.clear()
+    spent: list[int] = []
+    real = budget.spend
+
+    def unlimited(payloads):  # noqa: ANN001, ANN202
+        try:
+            real(payloads)
+        except budget.OverBudget as over:
+            spent.append(over.spent)
+
+    monkeypatch.setattr(budget, "spend", unlimited)
+    whole = mocapz.compress(m, "patterns")
+    assert given_up == whole
+    model_won = len(whole) <= len(mocapz.compress(m, "quant"))
+    assert bool(spent) != model_won  # given up exactly where the correction alone is the smaller
+    assert (parts < len(calls)) == early

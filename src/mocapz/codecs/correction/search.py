@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import math
 import warnings
+from collections.abc import Callable
 from dataclasses import replace
 
 import numpy as np
@@ -24,6 +25,23 @@ FAST_DEPTH = -1  # the one depth of effort "fast", added to the clip's (knots an
 # shared files (CMU and other BVH, ASF/AMC, C3D, TRC) at 1 cm it codes within 0.5 % of effort medium's search, the
 # clip's own depth 1.2 % (CMU) to 19 % (others) larger
 SAMPLE_S = 6.0  # a long clip's settings are chosen on two windows of this many seconds, then coded whole
+Maker = Callable[[float], "tuple[float, np.ndarray | None]"]
+
+
+class Base:
+    """A base the correction may be added to: ``values`` ``(frames, columns)`` costing ``extra`` bytes of its own,
+    or one made when it is first needed by ``make(cap) -> (extra, values)`` (a model's encoding and decoding),
+    which may give up once its own bytes reach ``cap`` (values None, ``extra`` the bytes it reached: it cannot be
+    the smaller file). Until made, ``extra`` is a lower bound of its own bytes."""
+
+    def __init__(self, values: np.ndarray | None, extra: float, make: Maker | None = None) -> None:
+        self.values, self.extra, self.make = values, extra, make
+
+    def within(self, cap: float = math.inf) -> bool:
+        """Whether its own bytes are under ``cap`` (made if it must be to tell)."""
+        if self.values is None and self.extra < cap and self.make is not None:
+            self.extra, self.values = self.make(cap)
+        return self.values is not None and self.extra < cap
 
 
 def search(clip: Clip, base: np.ndarray, target: Target, depth: int | None = None) -> Correction:
@@ -36,10 +54,11 @@ def search(clip: Clip, base: np.ndarray, target: Target, depth: int | None = Non
     return search_bases(clip, [base], [0], target, depth)[1]
 
 
-def search_bases(clip: Clip, bases: list[np.ndarray], extra: list[int], target: Target,
+def search_bases(clip: Clip, bases: list[np.ndarray | Base], extra: list[int], target: Target,
                  depth: int | None = None, effort: str = "medium") -> tuple[int, Correction]:
     """The base (``(frames, columns)`` values the correction is added to, each costing ``extra`` bytes of its
-    own) and the correction coding the clip smallest, ``(index, correction)``. On a short clip every base is
+    own; or a :class:`Base`, made only where it may be the smaller, its ``extra`` entry unused) and the correction
+    coding the clip smallest, ``(index, correction)``. On a short clip every base is
     searched whole, the first one's settings as :func:`search` does, the others at the lifting depth it chose;
     on a long one the bases are compared on the two windows (their corrections' bytes scaled to the clip, plus
     their own; the depth searched on the base of the fewest bytes of its own, a base whose own bytes alone reach
@@ -47,47 +66,55 @@ def search_bases(clip: Clip, bases: list[np.ndarray], extra: list[int], target: 
     its own if it misses (then the other bases are searched whole as well). The smallest is returned, met or
     not: the caller says what missed.
 
-    ``effort`` (the codec option): ``"fast"`` tries one lifting depth, :data:`FAST_DEPTH` (then the windows of a
-    long clip only choose between bases, or start a distortion or ARMS target's search: one base and a max
-    error target are coded once, whole; should that depth's rounds run out, :attr:`.fit.Correction.settled`,
-    the depth below is coded as well and the smaller kept); ``"best"`` codes every setting on the whole clip,
-    whatever its length."""
+    ``effort`` (the codec option): ``"fast"`` tries one lifting depth, :data:`FAST_DEPTH` (with a max error
+    target each base is then one fit, coded whole from the cheapest as on a short clip, the windows left out;
+    they start a distortion or ARMS target's search; should that depth's rounds run out,
+    :attr:`.fit.Correction.settled`, the depth below is coded as well and the smaller kept); ``"best"`` codes
+    every setting on the whole clip, whatever its length."""
+    given = [b if isinstance(b, Base) else Base(b, e) for b, e in zip(bases, extra, strict=True)]
     if effort == "fast" and depth is None:
         depth = max(1, clip.levels + FAST_DEPTH)
-        found = _search_bases(clip, bases, extra, target, depth, effort)
+        found = _search_bases(clip, given, target, depth, effort)
         if found[1].settled or depth <= 1:
             return found
         # its verification rounds ran out (levels far up): one depth less as well, the smaller met kept
-        other = _search_bases(clip, bases, extra, target, depth - 1, effort)
-        return min(found, other, key=lambda f: (not target.met(f[1].errors), extra[f[0]] + f[1].size))
-    return _search_bases(clip, bases, extra, target, depth, effort)
+        other = _search_bases(clip, given, target, depth - 1, effort)
+        return min(found, other, key=lambda f: (not target.met(f[1].errors), given[f[0]].extra + f[1].size))
+    return _search_bases(clip, given, target, depth, effort)
 
 
-def _search_bases(clip: Clip, bases: list[np.ndarray], extra: list[int], target: Target, depth: int | None,
+def _search_bases(clip: Clip, bases: list[Base], target: Target, depth: int | None,
                   effort: str) -> tuple[int, Correction]:
     """:func:`search_bases` at one effort and ``depth`` (None: searched)."""
-    one_fit = len(bases) == 1 and depth is not None and len(RELAXES) == 1 \
-        and target.max_distortion is None and target.max_arms is None
+    # a known depth and a max error target: a base is one fit, and its windows would only predict that fit's
+    # bytes; each base is coded whole (a base whose own bytes reach a met coding's whole bytes not at all)
+    one_fit = depth is not None and len(RELAXES) == 1 and target.max_distortion is None and target.max_arms is None
     parts = [(clip, slice(None))] if effort == "best" or one_fit else _windows(clip)
     if parts[0][0] is clip:
-        return _whole_bases(clip, bases, extra, target, depth)
-    predicted = _predict(clip, parts, bases, extra, target, depth)
+        return _whole_bases(clip, bases, target, depth)
+    predicted = _predict(clip, parts, bases, target, depth)
     del parts  # the windows' clips are not kept beside the whole clip's coding (peak memory)
     best = int(np.argmin([p[0] for p in predicted]))
     _, start, setting = predicted[best]
-    cor = bound_search(clip, bases[best], target, *setting, start=start)
-    searched = _cheapest(extra)
+    cor = bound_search(clip, _values(bases[best]), target, *setting, start=start)
+    searched = _cheapest(bases)
     first = _settings(clip, depth if best == searched else predicted[searched][2][1])[0]
     if not target.met(cor.errors) and setting != first:
         del cor  # replaced: not kept beside its replacement
-        cor = bound_search(clip, bases[best], target, *first, start=start)
+        cor = bound_search(clip, _values(bases[best]), target, *first, start=start)
     if target.met(cor.errors) or len(bases) == 1:
         return best, cor
-    found = [cor if i == best else _search_whole(clip, b, target, cor.depth) for i, b in enumerate(bases)]
-    return _smallest(found, extra)
+    found = {i: cor if i == best else _search_whole(clip, _values(b), target, cor.depth)
+             for i, b in enumerate(bases) if i == best or b.within()}
+    return min(found.items(), key=lambda f: bases[f[0]].extra + f[1].size)  # the first of equals
 
 
-def _predict(clip: Clip, parts: list[tuple[Clip, slice]], bases: list[np.ndarray], extra: list[int],
+def _values(base: Base) -> np.ndarray:
+    assert base.values is not None  # made (Base.within) before it is fitted
+    return base.values
+
+
+def _predict(clip: Clip, parts: list[tuple[Clip, slice]], bases: list[Base],
              target: Target, depth: int | None) -> list[tuple[float, float, tuple[float, int]]]:
     """Per base, what the windows ``parts`` of a long clip predict: the clip's bytes (its correction's, scaled
     from the windows' to the clip, plus the base's own ``extra``), the bound to start the whole clip's search
@@ -98,22 +125,23 @@ def _predict(clip: Clip, parts: list[tuple[Clip, slice]], bases: list[np.ndarray
     share = clip.motion.n_frames / sum(c.motion.n_frames for c, _ in parts)
     settings = _settings(clip, depth)
     predicted: list[tuple[float, float, tuple[float, int]]] = [(math.inf, 0.0, settings[0])] * len(bases)
-    for i in sorted(range(len(bases)), key=lambda i: extra[i]):
-        if extra[i] >= min(p[0] for p in predicted):
+    for i in sorted(range(len(bases)), key=lambda i: bases[i].extra):
+        if not bases[i].within(min(p[0] for p in predicted)):
             continue
         # per window and setting (size, bound): the windows' corrections themselves are not kept
-        per_part = [[(c.size, c.bound) for c in _each_setting(w, bases[i][a], target, settings)] for w, a in parts]
+        per_part = [[(c.size, c.bound) for c in _each_setting(w, _values(bases[i])[a], target, settings)]
+                    for w, a in parts]
         sizes = [sum(p[k][0] for p in per_part) for k in range(len(settings))]
         k = int(np.argmin(sizes))
         start = math.exp(float(np.mean([math.log(p[k][1]) for p in per_part])))
-        predicted[i] = (extra[i] + share * sizes[k], start, settings[k])
+        predicted[i] = (bases[i].extra + share * sizes[k], start, settings[k])
         settings = _settings(clip, settings[k][1])  # the next bases: at the depth the cheapest one chose
     return predicted
 
 
-def _cheapest(extra: list[int]) -> int:
+def _cheapest(bases: list[Base]) -> int:
     """The base of the fewest bytes of its own (the first of equals): the one whose depth is searched."""
-    return min(range(len(extra)), key=lambda i: extra[i])
+    return min(range(len(bases)), key=lambda i: bases[i].extra)
 
 
 def _settings(clip: Clip, depth: int | None) -> list[tuple[float, int]]:
@@ -122,17 +150,18 @@ def _settings(clip: Clip, depth: int | None) -> list[tuple[float, int]]:
     return list(dict.fromkeys((r, dp) for dp in depths for r in RELAXES))
 
 
-def _whole_bases(clip: Clip, bases: list[np.ndarray], extra: list[int], target: Target, depth: int | None
-                 ) -> tuple[int, Correction]:
+def _whole_bases(clip: Clip, bases: list[Base], target: Target, depth: int | None) -> tuple[int, Correction]:
     """A short clip's bases each searched whole, from the cheapest of their own bytes (the correction alone
     first, :func:`_cheapest`): its lifting depth searched (or ``depth``), the others at the one it chose; a base
     whose own bytes alone reach a met coding's whole bytes is not tried (it cannot be the smaller)."""
     found: dict[int, Correction] = {}
-    for i in sorted(range(len(bases)), key=lambda i: extra[i]):
-        if any(target.met(c.errors) and extra[i] >= extra[j] + c.size for j, c in found.items()):
+    for i in sorted(range(len(bases)), key=lambda i: bases[i].extra):
+        if not bases[i].within(min((bases[j].extra + c.size for j, c in found.items() if target.met(c.errors)),
+                                   default=math.inf)):
             continue
-        found[i] = _search_whole(clip, bases[i], target, depth if not found else next(iter(found.values())).depth)
-    return min(sorted(found.items()), key=lambda f: extra[f[0]] + f[1].size)  # the first of equals
+        found[i] = _search_whole(clip, _values(bases[i]), target,
+                                 depth if not found else next(iter(found.values())).depth)
+    return min(sorted(found.items()), key=lambda f: bases[f[0]].extra + f[1].size)  # the first of equals
 
 
 def _search_whole(clip: Clip, base: np.ndarray, target: Target, depth: int | None) -> Correction:
@@ -147,11 +176,6 @@ def _search_whole(clip: Clip, base: np.ndarray, target: Target, depth: int | Non
             best = cor
         del cor
     return best if best is not None else first
-
-
-def _smallest(found: list[Correction], extra: list[int]) -> tuple[int, Correction]:
-    i = int(np.argmin([e + c.size for e, c in zip(extra, found, strict=True)]))
-    return i, found[i]
 
 
 def _each_setting(clip: Clip, base: np.ndarray, target: Target,

@@ -7,7 +7,8 @@
    their own search for a distortion / ARMS target, see ``base_options``; a model missing that falls back
    to its settings), decode it, and code the residual with :func:`~mocapz.codecs.correction.search.search`
    so that every bound holds on the decoded result; the same is tried on a zero base (the correction
-   alone) and the smaller file is kept;
+   alone) and the smaller file is kept (the zero base first where it has no bytes of its own: the model is
+   then encoded only as far as its own bytes stay under that file's, :mod:`mocapz.codecs.budget`);
 3. refuse only a max-error target tighter than the source's own decimals.
 
 Sections: the model's own (untouched), plus ``c.head`` (layout version, base kind, lifting levels),
@@ -24,9 +25,11 @@ from typing import Any
 
 import numpy as np
 
+from mocapz.codecs import budget
+from mocapz.codecs.budget import section_bytes
 from mocapz.codecs.correction import bounds, context, lifting, window
 from mocapz.codecs.correction.fit import Clip, value_matrix
-from mocapz.codecs.correction.search import search_bases
+from mocapz.codecs.correction.search import Base, Maker, search_bases
 from mocapz.codecs.gaps import pack_mask, unpack_mask
 from mocapz.codecs.options import Length, Option
 from mocapz.codecs.target import CORRECTION_NAMES, DEFAULT_EFFORT, TARGET_NAMES, Target
@@ -114,22 +117,29 @@ def corrected(encode: Encoder, decode: Decoder, codec: str, declared: tuple[Opti
         header = ClipHeader.of(motion)
         fixed = given_settings(options, declared)
         make = base_options or strip_targets
-        tried: list[tuple[int, Sections, np.ndarray]] = []  # the bases: kind, their sections, their values
-        try:
-            if model_base or fixed or not zero_base:
-                base_sections = encode(motion, **make(motion, options, target))
-                tried.append((BASE_MODEL, base_sections, value_matrix(decode(base_sections, header))))
-        except TargetError:
-            if fixed or not zero_base:
-                base_sections = encode(motion, **strip_targets(motion, options, target))
-                tried.append((BASE_MODEL, base_sections, value_matrix(decode(base_sections, header))))
+        tried: list[tuple[int, Sections, Base]] = []  # the bases: kind, their sections, their values and bytes
+        zero = {"c.gaps": pack_mask(motion.missing)} if isinstance(motion, MarkerMotion) \
+            and motion.missing.any() else {}
+        if model_base and zero_base and not fixed and not zero:
+            # the zero base has no bytes of its own, so it is searched first; the model is encoded only where it
+            # may be the smaller, given up once its bytes reach the correction alone's (the same file)
+            made: Sections = {}
+            tried.append((BASE_MODEL, made, Base(None, 1, _maker(encode, decode, motion,
+                                                                  make(motion, options, target), header, made))))
+        else:
+            try:
+                if model_base or fixed or not zero_base:
+                    base_sections = encode(motion, **make(motion, options, target))
+                    tried.append((BASE_MODEL, base_sections, _made(base_sections, decode, header)))
+            except TargetError:
+                if fixed or not zero_base:
+                    base_sections = encode(motion, **strip_targets(motion, options, target))
+                    tried.append((BASE_MODEL, base_sections, _made(base_sections, decode, header)))
         if zero_base and not fixed:
-            zero = {"c.gaps": pack_mask(motion.missing)} if isinstance(motion, MarkerMotion) \
-                and motion.missing.any() else {}
-            tried.append((BASE_NONE, zero, clip.zero_base()))
-        best, cor = search_bases(clip, [t[2] for t in tried], [_size(t[1]) for t in tried], target,
+            tried.append((BASE_NONE, zero, Base(clip.zero_base(), _size(zero))))
+        best, cor = search_bases(clip, [t[2] for t in tried], [0] * len(tried), target,
                                  effort=options.get("effort") or DEFAULT_EFFORT)
-        kind, base_sections, _ = tried[best]
+        kind, base_sections, base = tried[best]
         if not target.met(cor.errors):
             raise TargetError(f"{motion.metadata.get('path', motion.name)}: the {codec} codec with its correction "
                               f"misses the target ({target.describe()}): it reaches distortion "
@@ -137,7 +147,7 @@ def corrected(encode: Encoder, decode: Decoder, codec: str, declared: tuple[Opti
                               "(the lossless codec gives the values back exactly)")
         context.spend(clip.whole, cor.added, cor.skated, cor.tail)  # a block: what it used of the clip's allowances
         # as the fit laid the streams out
-        pre = clip.prefix_of(tried[best][2])
+        pre = clip.prefix_of(base.values)
         fmt = SEEKABLE if window.seekable(motion.n_frames) else FORMAT if pre is None \
             else ACROSS if pre.ndim == 2 else CONTINUED
         if pre is not None:
@@ -157,7 +167,34 @@ def corrected(encode: Encoder, decode: Decoder, codec: str, declared: tuple[Opti
 
 
 def _size(sections: Sections) -> int:
-    return sum(len(v) + 8 for v in sections.values())
+    return section_bytes(sections.values())
+
+
+def _made(sections: Sections, decode: Decoder, header: ClipHeader) -> Base:
+    """A model base already encoded: its decoded values and its own bytes."""
+    return Base(value_matrix(decode(sections, header)), _size(sections))
+
+
+def _maker(encode: Encoder, decode: Decoder, motion: AnyMotion, options: dict[str, Any], header: ClipHeader,
+           made: Sections) -> Maker:
+    """``make(cap)`` of a model base encoded when first needed (:class:`.search.Base`): its own bytes and decoded
+    values, its sections left in ``made``; given up once its sections reach ``cap`` bytes (values None), not
+    tried where its own rate control misses its target (the correction alone is)."""
+    def make(cap: float) -> tuple[float, np.ndarray | None]:
+        try:
+            with budget.capped(cap):
+                sections = encode(motion, **options)
+        except budget.OverBudget as over:
+            return over.spent, None
+        except TargetError:
+            return math.inf, None
+        size = _size(sections)
+        if size >= cap:
+            return size, None
+        made.update(sections)
+        return size, value_matrix(decode(sections, header))
+
+    return make
 
 
 def _refuse_below_precision(clip: Clip, target: Target, codec: str) -> None:

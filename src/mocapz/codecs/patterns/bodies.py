@@ -14,6 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from mocapz.codecs import budget
 from mocapz.codecs.gaps import encode_mask, fill_positions
 from mocapz.codecs.patterns.decode import params_bytes
 from mocapz.codecs.patterns.heading import measure_yaw, rotate, up_axis
@@ -120,9 +121,15 @@ def _code_markers(motions: list[MarkerMotion], hier: Hierarchy, settings: Settin
         for d, r, y in zip(decoded, nc.recon, yaws, strict=True):
             d[:, mem] = _local(r.reshape(d.shape[0], len(mem), 3), y, up, False) + d[:, ref][:, None]
         nodes.append(nc)
+        budget.spend(_written(sections, nodes))
     for d, ob in zip(decoded, observed, strict=True):
         d[~ob] = np.nan
     return _finish(nodes, sections, decoded)
+
+
+def _written(sections: list[dict[str, bytes]], nodes: list[NodeCoded | None]) -> list[bytes]:
+    """The sections' payloads coded so far: the clips' own and every coded node's database and streams."""
+    return [v for sec in sections for v in sec.values()] + [p for nc in nodes if nc for p in (nc.db, *nc.streams)]
 
 
 def _local(v: np.ndarray, yaw: np.ndarray | None, up: int, inverse: bool) -> np.ndarray:
@@ -158,4 +165,5 @@ def _code_skeletal(motions: list[Motion], hier: Hierarchy, settings: Settings, w
         for out, sf, r in zip(decoded, feats, nc.recon, strict=True):
             sf.put_node(out, node.members, r)
         nodes.append(nc)
+        budget.spend(_written(sections, nodes))
     return _finish(nodes, sections, decoded)
