@@ -35,7 +35,8 @@ def test_encoder_writes_the_golden_bytes(entry: dict) -> None:
     assert hashlib.sha256(data).hexdigest() == entry["sha256"], f"{entry['file']}: the encoder's bytes moved"
 
 
-OLDER = [(d, e) for d in ("format1", "format2", "format3", "format4", "format5", "format6")
+OLDER = [(d, e) for d in ("format1", "format2", "format3", "format4", "format5", "format6",
+                                  "format7")
          for e in json.loads((HERE / d / "golden.json").read_text())]
 
 
@@ -49,7 +50,8 @@ def test_earlier_formats_still_decode(folder: str, entry: dict) -> None:
     correction's parts of such a clip could go into one range stream (``lifting.JOINT``, the files that moved);
     ``format5``, the streams before a continued block predicted its first details across its edge (``c.head``
     format 4, not 5); ``format6``, the files that moved when a file's default ``effort`` became fast (encoder
-    only: a file of either effort decodes by the same decoder)."""
+    only: a file of either effort decodes by the same decoder); ``format7``, the files that moved when the byte
+    planes' zstd search became btopt (:data:`mocapz.format.planes.STRATEGY`; any zstd frame decodes alike)."""
     data = (HERE / folder / entry["file"]).read_bytes()
     assert hashlib.sha256(data).hexdigest() == entry["sha256"]
     assert values_hash(mocapz.decompress(data)) == entry["values_sha256"]
