@@ -79,15 +79,24 @@ def right_jacobian(w: np.ndarray) -> np.ndarray:
 def karcher_mean(r: np.ndarray, iterations: int = 50, tol: float = 1e-12) -> np.ndarray:
     """Intrinsic (Karcher / Frechet) mean over axis 0 of rotations ``(samples, ..., 3, 3)``.
 
-    Iterates ``mu <- mu exp(mean_i log(mu^T r_i))`` until the update is below ``tol`` radians.
+    Iterates ``mu <- mu exp(mean_i log(mu^T r_i))`` on each mean until its update is below ``tol`` radians (the
+    means that have converged are left out of the next iterations: on a clip's joints most settle in a few, a
+    few take a dozen). A mean's iterations are the same numbers whichever others run beside it.
     """
     mu = _chordal_mean(r)
+    lead = mu.shape[:-2]
+    mu = mu.reshape(-1, 3, 3)
+    samples = r.reshape(r.shape[0], -1, 3, 3)
+    active = np.arange(mu.shape[0])
     for _ in range(iterations):
-        t = log(np.swapaxes(mu, -1, -2)[None] @ r).mean(axis=0)
-        mu = mu @ exp(t)
-        if float(np.max(np.linalg.norm(t, axis=-1), initial=0.0)) < tol:
+        if not active.size:
             break
-    return mu
+        m = mu[active]
+        part = samples if active.size == mu.shape[0] else samples[:, active]
+        t = log(np.swapaxes(m, -1, -2)[None] @ part).mean(axis=0)
+        mu[active] = m @ exp(t)
+        active = active[~(np.linalg.norm(t, axis=-1) < tol)]
+    return mu.reshape(*lead, 3, 3)
 
 
 def _chordal_mean(r: np.ndarray) -> np.ndarray:
