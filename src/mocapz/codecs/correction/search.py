@@ -125,7 +125,7 @@ def _predict(clip: Clip, parts: list[tuple[Clip, slice]], bases: list[Base],
     share = clip.motion.n_frames / sum(c.motion.n_frames for c, _ in parts)
     settings = _settings(clip, depth)
     predicted: list[tuple[float, float, tuple[float, int]]] = [(math.inf, 0.0, settings[0])] * len(bases)
-    for i in sorted(range(len(bases)), key=lambda i: bases[i].extra):
+    for i in _order(bases):
         if not bases[i].within(min(p[0] for p in predicted)):
             continue
         # per window and setting (size, bound): the windows' corrections themselves are not kept
@@ -137,6 +137,12 @@ def _predict(clip: Clip, parts: list[tuple[Clip, slice]], bases: list[Base],
         predicted[i] = (bases[i].extra + share * sizes[k], start, settings[k])
         settings = _settings(clip, settings[k][1])  # the next bases: at the depth the cheapest one chose
     return predicted
+
+
+def _order(bases: list[Base]) -> list[int]:
+    """The order the bases are tried in: from the fewest bytes of their own, a base not made yet after the others
+    (its bytes unknown; with the depth given the order does not change what is chosen, only what is made)."""
+    return sorted(range(len(bases)), key=lambda i: (bases[i].values is None, bases[i].extra))
 
 
 def _cheapest(bases: list[Base]) -> int:
@@ -155,7 +161,7 @@ def _whole_bases(clip: Clip, bases: list[Base], target: Target, depth: int | Non
     first, :func:`_cheapest`): its lifting depth searched (or ``depth``), the others at the one it chose; a base
     whose own bytes alone reach a met coding's whole bytes is not tried (it cannot be the smaller)."""
     found: dict[int, Correction] = {}
-    for i in sorted(range(len(bases)), key=lambda i: bases[i].extra):
+    for i in _order(bases):
         if not bases[i].within(min((bases[j].extra + c.size for j, c in found.items() if target.met(c.errors)),
                                    default=math.inf)):
             continue

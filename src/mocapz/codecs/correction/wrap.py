@@ -120,9 +120,11 @@ def corrected(encode: Encoder, decode: Decoder, codec: str, declared: tuple[Opti
         tried: list[tuple[int, Sections, Base]] = []  # the bases: kind, their sections, their values and bytes
         zero = {"c.gaps": pack_mask(motion.missing)} if isinstance(motion, MarkerMotion) \
             and motion.missing.any() else {}
-        if model_base and zero_base and not fixed and not zero:
-            # the zero base has no bytes of its own, so it is searched first; the model is encoded only where it
-            # may be the smaller, given up once its bytes reach the correction alone's (the same file)
+        effort = options.get("effort") or DEFAULT_EFFORT
+        if model_base and zero_base and not fixed and (not zero or effort == "fast"):
+            # the zero base is searched first (it has no bytes of its own, or at effort fast the order changes
+            # nothing); the model is encoded only where it may be the smaller, given up once its bytes reach the
+            # correction alone's (the same file)
             made: Sections = {}
             tried.append((BASE_MODEL, made, Base(None, 1, _maker(encode, decode, motion,
                                                                   make(motion, options, target), header, made))))
@@ -137,8 +139,7 @@ def corrected(encode: Encoder, decode: Decoder, codec: str, declared: tuple[Opti
                     tried.append((BASE_MODEL, base_sections, _made(base_sections, decode, header)))
         if zero_base and not fixed:
             tried.append((BASE_NONE, zero, Base(clip.zero_base(), _size(zero))))
-        best, cor = search_bases(clip, [t[2] for t in tried], [0] * len(tried), target,
-                                 effort=options.get("effort") or DEFAULT_EFFORT)
+        best, cor = search_bases(clip, [t[2] for t in tried], [0] * len(tried), target, effort=effort)
         kind, base_sections, base = tried[best]
         if not target.met(cor.errors):
             raise TargetError(f"{motion.metadata.get('path', motion.name)}: the {codec} codec with its correction "
