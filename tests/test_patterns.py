@@ -286,3 +286,27 @@ def test_corrupted_stream_is_a_format_error(c3d_short: MarkerMotion) -> None:
     sections["s3"] = sections["s3"][:5]
     with pytest.raises(FormatError):
         decode(sections, ClipHeader.of(c3d_short))
+
+
+def test_marker_pair_statistics_stay_small_on_hundreds_of_points() -> None:
+    """A C3D whose POINT block holds a model's outputs beside the markers can carry hundreds of points: the
+    hierarchy's pairwise rigidity is computed a few rows at a time (no frames x M x M x 3 array: 330 points over
+    400 frames would be 1 GB), each pair's figures those of its two trajectories alone."""
+    import tracemalloc
+
+    from mocapz.codecs.patterns.marker_tree import _stats
+
+    base = load(data_path("cmu/c3d/01_01.c3d")).positions[:400]
+    rng = np.random.default_rng(0)
+    pos = np.concatenate([base + rng.normal(0.0, 20.0, 3) for _ in range(8)], axis=1)[:, :330]  # 330 points
+    tracemalloc.start()
+    rig, mean, cnt = _stats(pos)
+    peak = tracemalloc.get_traced_memory()[1]
+    tracemalloc.stop()
+    assert peak < 64 << 20, peak
+    for i, j in [(0, 1), (5, 200), (329, 17), (100, 100)]:
+        d = np.linalg.norm(pos[:, i] - pos[:, j], axis=1)
+        ok = np.isfinite(d)
+        assert cnt[i, j] == ok.sum()
+        assert mean[i, j] == pytest.approx(d[ok].mean() if ok.any() else 0.0, abs=1e-9)
+        assert rig[i, j] == pytest.approx(d[ok].std() if ok.any() else 0.0, abs=1e-6)

@@ -35,6 +35,7 @@ _STANDARD: dict[str, tuple[str | None, tuple[str, ...], tuple[str, ...]]] = {
 }
 _ROOT_FALLBACK = ("C7", "CLAV", "T10", "STRN")
 HEAD_DIAGONALS = (("LFHD", "RBHD"), ("RFHD", "LBHD"))
+PAIR_VALUES = 1 << 21  # differences (frames x rows x markers x 3) made at a time by _stats: 16 MB of float64
 
 
 def canonical_label(label: str) -> str:
@@ -55,16 +56,21 @@ def standard_node_of(labels: list[str]) -> dict[int, str]:
 
 
 def _stats(positions: np.ndarray, max_frames: int = 400) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Pairwise rigidity (std of distance), mean distance and common-frame counts, ``(M, M)`` each."""
+    """Pairwise rigidity (std of distance), mean distance and common-frame counts, ``(M, M)`` each, over at most
+    about ``max_frames`` frames ``(frames, M, 3)``; a few markers' rows at a time (:data:`PAIR_VALUES`), so a
+    marker set of hundreds of points (a model's outputs stored as points) needs no frames x M x M x 3 array."""
     step = max(1, positions.shape[0] // max_frames)
     sub = positions[::step]
-    d = np.linalg.norm(sub[:, :, None] - sub[:, None, :], axis=-1)
-    ok = np.isfinite(d)
-    cnt = ok.sum(axis=0)
-    d0 = np.where(ok, d, 0.0)
-    mean = d0.sum(axis=0) / np.maximum(cnt, 1)
-    var = (np.where(ok, d - mean, 0.0) ** 2).sum(axis=0) / np.maximum(cnt, 1)
-    return np.sqrt(var), mean, cnt
+    frames, m = sub.shape[:2]
+    rig, mean, cnt = np.empty((m, m)), np.empty((m, m)), np.empty((m, m), dtype=np.int64)
+    rows = max(1, PAIR_VALUES // max(frames * m * 3, 1))
+    for a in range(0, m, rows):
+        d = np.linalg.norm(sub[:, a:a + rows, None] - sub[:, None, :], axis=-1)
+        ok = np.isfinite(d)
+        c = cnt[a:a + rows] = ok.sum(axis=0)
+        mu = mean[a:a + rows] = np.where(ok, d, 0.0).sum(axis=0) / np.maximum(c, 1)
+        rig[a:a + rows] = np.sqrt((np.where(ok, d - mu, 0.0) ** 2).sum(axis=0) / np.maximum(c, 1))
+    return rig, mean, cnt
 
 
 def attach_by_rigidity(unassigned: list[int], owner: dict[int, int], positions: np.ndarray) -> dict[int, int]:
