@@ -251,3 +251,24 @@ def test_size_figures_real_clip() -> None:
     assert figs["ratio"] == pytest.approx(figs["raw_bytes"] / len(data), rel=1e-15)
     assert figs["ratio_file"] == pytest.approx(path.stat().st_size / len(data), rel=1e-15)
     assert figs["bytes_per_second"] == pytest.approx(len(data) / (142 / 120), rel=1e-12)
+
+
+def test_marker_bone_pairs_stay_small_on_hundreds_of_points() -> None:
+    """``bone_pairs`` of a marker clip of hundreds of points (a POINT block holding a model's outputs) makes no
+    frames x M x M x 3 array (330 points over 500 frames would be 1.3 GB): a few rows at a time, the pairs those of
+    the whole computation (each point's most rigid partner: its own copy, shifted)."""
+    import tracemalloc
+    from dataclasses import replace
+
+    from mocapz.io import load
+
+    m = load(data_path("cmu/c3d/01_01.c3d"))
+    base = m.positions[:500]
+    pos = np.concatenate([base + np.array([100.0 * k, 0.0, 0.0]) for k in range(8)], axis=1)[:, :330]
+    big = replace(m, positions=pos, labels=[f"P{i}" for i in range(330)])
+    tracemalloc.start()
+    pairs = bone_pairs(big)
+    peak = tracemalloc.get_traced_memory()[1]
+    tracemalloc.stop()
+    assert peak < 64 << 20, peak
+    assert len(pairs) and (pairs[:, 0] < pairs[:, 1]).all()

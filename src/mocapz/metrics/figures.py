@@ -96,6 +96,7 @@ def positions_pair(original: AnyMotion, decoded: AnyMotion) -> tuple[np.ndarray,
     raise MocapzError("cannot compare skeletal data with marker data")
 
 
+PAIR_VALUES = 1 << 21  # differences (frames x rows x markers x 3) made at a time by bone_pairs: 16 MB of float64
 CHUNK_FRAMES = 1024  # frames at a time of the figures' (frames, points, 3) temporaries (peak memory)
 
 
@@ -162,10 +163,13 @@ def bone_pairs(motion: AnyMotion) -> np.ndarray:
         return np.zeros((0, 2), dtype=np.int64)
     step = max(1, pos.shape[0] // 500)
     sub = pos[::step]
-    d = np.linalg.norm(sub[:, :, None] - sub[:, None, :], axis=-1)
-    with np.errstate(invalid="ignore"):
-        mean = np.nanmean(d, axis=0)
-        spread = np.nanstd(d, axis=0) / np.maximum(mean, 1e-9)
+    spread = np.empty((m, m))
+    rows = max(1, PAIR_VALUES // (sub.shape[0] * m * 3))  # a few markers' rows at a time: no frames x M x M x 3
+    for a in range(0, m, rows):
+        d = np.linalg.norm(sub[:, a:a + rows, None] - sub[:, None, :], axis=-1)
+        with np.errstate(invalid="ignore"):
+            mean = np.nanmean(d, axis=0)
+            spread[a:a + rows] = np.nanstd(d, axis=0) / np.maximum(mean, 1e-9)
     spread[np.isnan(spread)] = np.inf
     np.fill_diagonal(spread, np.inf)
     partner = np.argmin(spread, axis=1)
