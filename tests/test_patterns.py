@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -310,3 +311,16 @@ def test_marker_pair_statistics_stay_small_on_hundreds_of_points() -> None:
         assert cnt[i, j] == ok.sum()
         assert mean[i, j] == pytest.approx(d[ok].mean() if ok.any() else 0.0, abs=1e-9)
         assert rig[i, j] == pytest.approx(d[ok].std() if ok.any() else 0.0, abs=1e-6)
+
+
+def test_points_rigid_to_the_bit_are_grouped_without_end() -> None:
+    """Points that keep their distances exactly (a model's virtual points computed on a segment's markers, stored
+    in the POINT block) cannot be split by a rigidity cut: the hierarchy splits such a group in order instead of
+    halving its cut for ever (a RecursionError before), and the patterns codec meets its target on the clip."""
+    m = load(data_path("cmu/c3d/01_01.c3d"))
+    pos = np.concatenate([m.positions[:300] + np.array([100.0 * k, 0.0, 0.0]) for k in range(8)], axis=1)
+    big = replace(m, positions=pos, labels=[f"P{i}" for i in range(pos.shape[1])])
+    hier = build_marker_hierarchy(big.labels, big.positions)
+    assert sorted(i for n in hier.nodes for i in n.members) == list(range(pos.shape[1]))
+    data = compress(big, "patterns", max_error="1cm")
+    assert evaluate(big, decompress(data)).max_err <= 1.0 / m.unit_cm * (1 + 1e-6)

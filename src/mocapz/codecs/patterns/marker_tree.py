@@ -35,6 +35,7 @@ _STANDARD: dict[str, tuple[str | None, tuple[str, ...], tuple[str, ...]]] = {
 }
 _ROOT_FALLBACK = ("C7", "CLAV", "T10", "STRN")
 HEAD_DIAGONALS = (("LFHD", "RBHD"), ("RFHD", "LBHD"))
+INSEPARABLE = 2.0**-40  # a group whose rigidity spread is below this share of the cut is split without it
 PAIR_VALUES = 1 << 21  # differences (frames x rows x markers x 3) made at a time by _stats: 16 MB of float64
 
 
@@ -203,6 +204,10 @@ def _rigid_groups(rig: np.ndarray, idx: list[int], max_group: int, cut: float, l
         return np.zeros(1, dtype=np.int64)
     sub = rig[np.ix_(idx, idx)]
     z = linkage(sub[np.triu_indices(len(idx), 1)], method="average")
+    if len(idx) > max_group and not z[-1, 2] > cut * INSEPARABLE:
+        # points rigid with one another to the last bit (a model's virtual points on a segment's markers): no cut
+        # separates them, so they are split in order into groups of the largest size
+        return np.arange(len(idx), dtype=np.int64) // max_group
     lab = fcluster(z, cut, criterion="distance").astype(np.int64)
     out = np.zeros(len(idx), dtype=np.int64)
     nxt = 0
