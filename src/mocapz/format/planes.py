@@ -35,17 +35,18 @@ def _compressor(level: int, size: int) -> zstandard.ZstdCompressor:
     made = getattr(_LOCAL, "zstd", None)
     if made is None:
         made = _LOCAL.zstd = {}
+    if level != LEVEL:  # zstd's own parameters for the size
+        z = made.get(level)
+        if z is None:
+            z = made[level] = zstandard.ZstdCompressor(level=level)
+        return z
     p = zstandard.ZstdCompressionParameters.from_level(level, source_size=size)
-    key = (level, p.window_log, p.chain_log, p.hash_log, p.search_log, p.min_match, p.target_length, p.strategy)
+    key = (p.window_log, p.chain_log, p.hash_log, p.search_log, p.target_length)
     z = made.get(key)
     if z is None:
-        if level == LEVEL:
-            p = zstandard.ZstdCompressionParameters(
-                window_log=p.window_log, chain_log=p.chain_log, hash_log=p.hash_log, search_log=p.search_log,
-                min_match=MIN_MATCH, target_length=p.target_length, strategy=STRATEGY)
-            z = made[key] = zstandard.ZstdCompressor(compression_params=p)
-        else:
-            z = made[key] = zstandard.ZstdCompressor(level=level)
+        z = made[key] = zstandard.ZstdCompressor(compression_params=zstandard.ZstdCompressionParameters(
+            window_log=p.window_log, chain_log=p.chain_log, hash_log=p.hash_log, search_log=p.search_log,
+            min_match=MIN_MATCH, target_length=p.target_length, strategy=STRATEGY))
     return z
 
 
