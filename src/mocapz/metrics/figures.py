@@ -8,6 +8,7 @@ positions, leaving out samples missing in the original.
 from __future__ import annotations
 
 import warnings
+from collections.abc import Iterator
 from dataclasses import asdict, dataclass
 
 import numpy as np
@@ -96,7 +97,7 @@ def positions_pair(original: AnyMotion, decoded: AnyMotion) -> tuple[np.ndarray,
     raise MocapzError("cannot compare skeletal data with marker data")
 
 
-PAIR_VALUES = 1 << 21  # differences (frames x rows x markers x 3) made at a time by bone_pairs: 16 MB of float64
+PAIR_VALUES = 1 << 21  # differences (frames x rows x points x 3) made at a time by pair_distances: 16 MB of float64
 CHUNK_FRAMES = 1024  # frames at a time of the figures' (frames, points, 3) temporaries (peak memory)
 
 
@@ -142,6 +143,16 @@ def arms(err: np.ndarray, valid: np.ndarray) -> float:
     return float(np.mean(np.sqrt(sq[ok].sum(axis=1) / n[ok]))) if ok.any() else 0.0
 
 
+def pair_distances(points: np.ndarray) -> Iterator[tuple[slice, np.ndarray]]:
+    """The distances between every two points of ``points`` ``(frames, M, 3)``, a few rows at a time (no frames x
+    M x M x 3 array: :data:`PAIR_VALUES`): ``(rows, d)`` with ``d`` ``(frames, rows, M)`` (NaN where either is
+    missing)."""
+    frames, m = points.shape[:2]
+    step = max(1, PAIR_VALUES // max(frames * m * 3, 1))
+    for a in range(0, m, step):
+        yield slice(a, a + step), np.linalg.norm(points[:, a:a + step, None] - points[:, None, :], axis=-1)
+
+
 def bone_pairs(motion: AnyMotion) -> np.ndarray:
     """``(pairs, 2)`` point indices whose distance is a bone length.
 
@@ -164,12 +175,10 @@ def bone_pairs(motion: AnyMotion) -> np.ndarray:
     step = max(1, pos.shape[0] // 500)
     sub = pos[::step]
     spread = np.empty((m, m))
-    rows = max(1, PAIR_VALUES // (sub.shape[0] * m * 3))  # a few markers' rows at a time: no frames x M x M x 3
-    for a in range(0, m, rows):
-        d = np.linalg.norm(sub[:, a:a + rows, None] - sub[:, None, :], axis=-1)
+    for rows, d in pair_distances(sub):
         with np.errstate(invalid="ignore"):
             mean = np.nanmean(d, axis=0)
-            spread[a:a + rows] = np.nanstd(d, axis=0) / np.maximum(mean, 1e-9)
+            spread[rows] = np.nanstd(d, axis=0) / np.maximum(mean, 1e-9)
     spread[np.isnan(spread)] = np.inf
     np.fill_diagonal(spread, np.inf)
     partner = np.argmin(spread, axis=1)

@@ -13,6 +13,7 @@ import numpy as np
 
 from mocapz.codecs.patterns.hierarchy import Hierarchy, Node, topological
 from mocapz.errors import MocapzError
+from mocapz.metrics.figures import pair_distances
 
 # ------------------------------------------------------------------ standard marker names
 # node -> (parent node, preferred reference markers, members). CMU / Vicon Plug-in-Gait names.
@@ -36,7 +37,6 @@ _STANDARD: dict[str, tuple[str | None, tuple[str, ...], tuple[str, ...]]] = {
 _ROOT_FALLBACK = ("C7", "CLAV", "T10", "STRN")
 HEAD_DIAGONALS = (("LFHD", "RBHD"), ("RFHD", "LBHD"))
 INSEPARABLE = 2.0**-40  # a group whose rigidity spread is below this share of the cut is split without it
-PAIR_VALUES = 1 << 21  # differences (frames x rows x markers x 3) made at a time by _stats: 16 MB of float64
 
 
 def canonical_label(label: str) -> str:
@@ -58,19 +58,17 @@ def standard_node_of(labels: list[str]) -> dict[int, str]:
 
 def _stats(positions: np.ndarray, max_frames: int = 400) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Pairwise rigidity (std of distance), mean distance and common-frame counts, ``(M, M)`` each, over at most
-    about ``max_frames`` frames ``(frames, M, 3)``; a few markers' rows at a time (:data:`PAIR_VALUES`), so a
+    about ``max_frames`` frames ``(frames, M, 3)``; a few rows at a time (:func:`.pair_distances`), so a
     marker set of hundreds of points (a model's outputs stored as points) needs no frames x M x M x 3 array."""
     step = max(1, positions.shape[0] // max_frames)
     sub = positions[::step]
-    frames, m = sub.shape[:2]
+    m = sub.shape[1]
     rig, mean, cnt = np.empty((m, m)), np.empty((m, m)), np.empty((m, m), dtype=np.int64)
-    rows = max(1, PAIR_VALUES // max(frames * m * 3, 1))
-    for a in range(0, m, rows):
-        d = np.linalg.norm(sub[:, a:a + rows, None] - sub[:, None, :], axis=-1)
+    for rows, d in pair_distances(sub):
         ok = np.isfinite(d)
-        c = cnt[a:a + rows] = ok.sum(axis=0)
-        mu = mean[a:a + rows] = np.where(ok, d, 0.0).sum(axis=0) / np.maximum(c, 1)
-        rig[a:a + rows] = np.sqrt((np.where(ok, d - mu, 0.0) ** 2).sum(axis=0) / np.maximum(c, 1))
+        c = cnt[rows] = ok.sum(axis=0)
+        mu = mean[rows] = np.where(ok, d, 0.0).sum(axis=0) / np.maximum(c, 1)
+        rig[rows] = np.sqrt((np.where(ok, d - mu, 0.0) ** 2).sum(axis=0) / np.maximum(c, 1))
     return rig, mean, cnt
 
 
