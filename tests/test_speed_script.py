@@ -113,3 +113,19 @@ def test_one_clip_run(tmp_path: Path) -> None:
     again = tmp_path / "again.md"
     assert speed.main(["--render", str(out.with_suffix(".json")), "--out", str(again)]) == 0
     assert again.read_text() == text
+
+
+def test_library_command(tmp_path: Path) -> None:
+    """The library in one command: one ``mocapz compress`` over two real clips writes both files (timed), a
+    failing one reports its error line, and the table gives frames/s over the clips beside the lossless codec's."""
+    clips = [data_path("cmu/bvh/09_06.bvh"), data_path("cmu/bvh/09_01.bvh")]
+    done = speed.run_library(clips, "lossless", 1, 120.0)
+    assert set(done) == {"cli_s"} and done["cli_s"] > 0
+    broken = tmp_path / "broken.bvh"
+    broken.write_text("HIERARCHY\nROOT\n")
+    failed = speed.run_library([clips[0], broken], "lossless", 1, 120.0)
+    assert "broken.bvh" in failed["error"]
+    rows = [{"clip": c, "codec": "lossless", "frames": n, "cli": {"cli_s": 0.5}} for c, n in (("a", 142), ("b", 149))]
+    lines = speed.library_table(rows, {"lossless": {"cli_s": 1.0}, "quant": failed})
+    assert lines[2] == "| lossless | 2 | 291 | 291 x1.00 | 291 x1.00 |"
+    assert lines[3].startswith("| quant | 2 | 291 | error: ") and "broken.bvh" in lines[3]
