@@ -301,6 +301,12 @@ def apply_window(sections: Sections, header: ClipHeader, start: int, stop: int,
     return _add(zero_motion(part, None, mask), y, part)
 
 
+def on_model(sections: Sections) -> bool:
+    """Whether a corrected encoding's sections add the correction to the codec's model (else to a zero base: the
+    correction alone, the model's sections unused)."""
+    return _head(sections["c.head"])[1] == BASE_MODEL
+
+
 def _head(head: bytes) -> tuple[int, int, int, int]:
     """``c.head``'s format, base kind, lifting levels and shrink code (hundredths)."""
     fmt, pos = read_uvarint(head, 0)

@@ -163,14 +163,19 @@ def _joined(shared: Mapping[str, bytes], own: Sections) -> Sections:
     return {**own, "data": shared["m"] + own["data"]}
 
 
-def _coder(p: Prepared, model: SharedModel, shared: Mapping[str, bytes]) -> Any:
+def _coder(p: Prepared, model: SharedModel, shared: Mapping[str, bytes], zero_base: bool = False,
+           counted: bool = False) -> Any:
+    """The correction layer's encoder and decoder of a clip coded against the shared ``model``; ``zero_base``: the
+    correction alone may be chosen where it is smaller (a stream's block), the model's base then ``counted`` with
+    the shared sections among its own (where the block would write them: the block before does not hold them)."""
     def base(motion: AnyMotion, **options: Any) -> Sections:
-        return encode_member(p, model, options)
+        own = encode_member(p, model, options)
+        return {**shared, **own} if counted else own
 
     def dec(sections: Sections, header: ClipHeader) -> AnyMotion:
-        return decode_single(_joined(shared, sections), header)
+        return decode_single(_joined(shared, {k: v for k, v in sections.items() if k not in shared}), header)
 
-    return corrected(base, dec, "pga", OPTIONS, _base_options, zero_base=False)
+    return corrected(base, dec, "pga", OPTIONS, _base_options, zero_base=zero_base)
 
 
 def _both(p: Prepared, model: SharedModel, shared: Mapping[str, bytes], options: dict[str, Any]

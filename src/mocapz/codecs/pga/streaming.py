@@ -7,7 +7,9 @@ keeps as context (the last seconds and the block: :data:`mocapz.stream.HISTORY_S
 until the next key codes its trajectories and coordinates against it, as a library's clips do
 (:mod:`.library`): a block's sections are the model's ``m`` and ``p`` (the same bytes in every block of the
 interval, so the stream writes them once, :func:`mocapz.format.blocks.thin`) and its own ``params``, ``data``
-without the model, ``outl`` and the correction's ``c.*``. The correction meets the target on every block. A
+without the model, ``outl`` and the correction's ``c.*``. The correction meets the target on every block. A block
+whose correction alone (a zero base, continuing the block before as a quant stream's blocks do) codes it smaller
+than the model and its correction takes that, and holds no model sections (:func:`~.wrap.on_model`). A
 block's IK takes the compiled kernels when numba is installed, whatever the block's length
 (:func:`.ikjit.stream_block`), in the encoder and in every decoder alike.
 """
@@ -17,6 +19,7 @@ from __future__ import annotations
 from typing import Any
 
 from mocapz.codecs.correction.context import block_of
+from mocapz.codecs.correction.wrap import on_model
 from mocapz.codecs.pga import ikjit
 from mocapz.codecs.pga.library import _coder, _prepare, decode_member, fit_shared
 from mocapz.model.header import ClipHeader
@@ -24,6 +27,7 @@ from mocapz.model.motion import AnyMotion
 
 Sections = dict[str, bytes]
 KEPT = "pga_model"  # the stream's kept model: (SharedModel, its sections)
+HELD = "pga_held"  # the model sections the last block holds (None: it took the correction alone)
 
 
 def in_stream(motion: AnyMotion) -> bool:
@@ -43,8 +47,16 @@ def encode_block(motion: AnyMotion, options: dict[str, Any]) -> Sections:
             model = fit_shared([_prepare(ctx.clip, options)], options)
             kept[KEPT] = (model, model.sections())
         model, shared = kept[KEPT]
-        own = _coder(_prepare(motion, options), model, shared)[0](motion, **options)  # type: ignore[arg-type]
-    return {**shared, **own}
+        # the model's sections are free to a block when the block before holds them (written as marks), else
+        # they count among the model base's bytes against the correction alone's
+        free = kept.get(HELD) is shared
+        own = _coder(_prepare(motion, options), model, shared, zero_base=True, counted=not free)[0](
+            motion, **options)  # type: ignore[arg-type]
+    # the correction alone where it codes the block smaller: the block holds no model (the next block on it
+    # carries the interval's)
+    on = on_model(own)
+    kept[HELD] = shared if on else None
+    return {**shared, **own} if on else own
 
 
 def is_shared_block(sections: Sections) -> bool:
