@@ -205,3 +205,47 @@ def test_folder_without_motion_files_is_an_error(tmp_path: Path) -> None:
     (tmp_path / "in" / "readme.txt").write_text("nothing here")
     with pytest.raises(MocapzError, match="no motion files"):
         run_batch_compress(tmp_path / "in", tmp_path / "out", "lossless", {}, 1, None, False, False)
+
+
+def test_several_files_on_worker_processes(library: Path, tmp_path: Path,
+                                           capsys: pytest.CaptureFixture[str]) -> None:
+    """``mocapz compress A B C -o DIR -j 2``: the files on worker processes, the same bytes as one at a time
+    (serially in this process, as without --jobs), a broken one reported by its path and the others written;
+    without -o each output goes beside its input."""
+    from mocapz.parallel.folder import compress_files
+
+    files = [library / "09_06.bvh", library / "run" / "02_03.bvh", library / "markers" / "Gait.trc"]
+    serial = compress_files(files, tmp_path / "serial", "quant", {}, jobs=1)
+    pooled = compress_files(files, tmp_path / "pooled", "quant", {}, jobs=2)
+    assert not serial.failed and not pooled.failed and serial.mode == "serial" and pooled.mode == "processes"
+    assert _outputs(tmp_path / "serial") == _outputs(tmp_path / "pooled")
+    assert sorted(_outputs(tmp_path / "pooled")) == ["02_03.bvh.mcz", "09_06.bvh.mcz", "Gait.trc.mcz"]
+    assert (tmp_path / "pooled" / "09_06.bvh.mcz").read_bytes() == mocapz.compress(files[0], "quant")
+    text = (library / "09_06.bvh").read_text()
+    broken = library / "broken.bvh"
+    broken.write_text(text[: len(text) // 3])
+    from mocapz.cli.batch import run_batch_files
+    from mocapz.cli.common import Say
+
+    rc = run_batch_files([files[0], broken], None, "lossless", {}, 2, None, False, False, Say())
+    err = capsys.readouterr().err
+    assert rc == 1 and f"mocapz: error: {broken}" in err and "1/2 clips compressed, 1 FAILED" in err
+    assert (library / "09_06.bvh.mcz").exists() and not (library / "broken.bvh.mcz").exists()
+
+
+def test_jobs_options_on_files_are_checked(library: Path, tmp_path: Path) -> None:
+    """--jobs needs a folder or several files; options a batch cannot honour are refused, not ignored."""
+    from click.testing import CliRunner
+
+    from mocapz.cli.main import cli
+
+    runner = CliRunner()
+    one = runner.invoke(cli, ["compress", str(library / "09_06.bvh"), "-j", "2"])
+    assert isinstance(one.exception, OptionError) and "a folder INPUT or several files" in str(one.exception)
+    frames = runner.invoke(cli, ["compress", str(library), "-o", str(tmp_path / "o"), "--frames", "0:10"])
+    assert isinstance(frames.exception, OptionError) and "--frames, --start, --end and --unit" in str(frames.exception)
+    assert not (tmp_path / "o").exists()
+    ok = runner.invoke(cli, ["compress", str(library / "09_06.bvh"), str(library / "run" / "09_01.bvh"), "-o",
+                             str(tmp_path / "o"), "-j", "2", "-q"])
+    assert ok.exit_code == 0, ok.output
+    assert sorted(_outputs(tmp_path / "o")) == ["09_01.bvh.mcz", "09_06.bvh.mcz"]

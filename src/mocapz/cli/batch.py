@@ -1,6 +1,7 @@
 """``mocapz compress DIR -o OUTDIR``: the command-line side of batch compression (see :mod:`mocapz.parallel.folder`).
 
-``mocapz compress`` calls :func:`run_batch_compress` when its INPUT is a folder. Output: one line per
+``mocapz compress`` calls :func:`run_batch_compress` when its INPUT is a folder, :func:`run_batch_files` for
+several files with ``--jobs`` or ``--scheduler``. Output: one line per
 failed clip on stderr (``mocapz: error: PATH: reason``), then a summary line on stderr (or one JSON object
 on stdout with ``--json``); exit code 1 if any clip failed, else 0. Existing outputs are found before any
 clip is read.
@@ -21,7 +22,7 @@ from mocapz.codecs import get_codec
 from mocapz.errors import MocapzError
 from mocapz.format.extras_precision import ExtrasPrecision
 from mocapz.parallel.discover import BATCH_EXTENSIONS, discover, plan
-from mocapz.parallel.folder import compress_folder
+from mocapz.parallel.folder import compress_files, compress_folder
 from mocapz.parallel.report import BatchReport
 
 
@@ -44,7 +45,7 @@ def _size(n: float) -> str:
     return f"{n:.1f} GB"  # pragma: no cover
 
 
-def summary_line(report: BatchReport, input_dir: Path, output_dir: Path) -> str:
+def summary_line(report: BatchReport, input_dir: Path | str, output_dir: Path | str) -> str:
     """One line describing a finished batch."""
     n = len(report.results)
     failed = len(report.failed)
@@ -54,6 +55,19 @@ def summary_line(report: BatchReport, input_dir: Path, output_dir: Path) -> str:
     return (f"{input_dir} -> {output_dir}: {status}; {report.frames:,} frames, {_size(report.input_bytes)} -> "
             f"{_size(comp)}{ratio}; {report.codec}, {report.description}, {report.seconds:.2f} s, "
             f"{report.frames_per_second:,.0f} frames/s, {report.clips_per_second:.2f} clips/s")
+
+
+def run_batch_files(paths: list[Path], output_dir: Path | None, codec: str, options: dict[str, Any],
+                    jobs: int | None, scheduler: str | None, force: bool, as_json: bool, say: Say,
+                    block: str | None = None, precision: ExtrasPrecision | None = None) -> int:
+    """``mocapz compress FILES... [-o OUTDIR] -j N``: the files on worker processes (or Dask), as a folder's
+    (:func:`run_batch_compress`: the same messages and exit code); the outputs were checked by the caller."""
+    report = compress_files(list(paths), output_dir, codec, _absolute_paths(codec, options), jobs=jobs,
+                            scheduler=scheduler, force=force, progress=not (as_json or say.quiet), block=block,
+                            precision=precision)
+    where = f"{len(paths)} files"
+    return _report(report, Path("."), where, str(output_dir) if output_dir is not None else "beside them",
+                   as_json, say)
 
 
 def run_batch_compress(input_dir: Path, output_dir: Path, codec: str, options: dict[str, Any], jobs: int | None,
@@ -83,14 +97,19 @@ def run_batch_compress(input_dir: Path, output_dir: Path, codec: str, options: d
     report = compress_folder(input_dir, output_dir, codec, _absolute_paths(codec, options), jobs=jobs,
                              scheduler=scheduler, force=force, progress=not (as_json or say.quiet), block=block,
                              precision=precision)
-    root = Path(input_dir)
+    return _report(report, Path(input_dir), str(input_dir), str(output_dir), as_json, say)
+
+
+def _report(report: BatchReport, root: Path, inputs: str, outputs: str, as_json: bool, say: Say) -> int:
+    """One line per failed clip (its path under ``root``), then the summary line (or the JSON object); the exit
+    code."""
     for r in report.failed:
         click.echo(f"mocapz: error: {root / r.name}: {r.error}", err=True)
     if as_json:
         d = report.as_dict()
-        d.update(input=str(input_dir), output=str(output_dir))
+        d.update(input=inputs, output=outputs)
         click.echo(json.dumps(d))
     else:
-        say.info(summary_line(report, Path(input_dir), Path(output_dir)))
+        say.info(summary_line(report, inputs, outputs))
     sys.stderr.flush()
     return 1 if report.failed else 0

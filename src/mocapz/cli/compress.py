@@ -54,9 +54,10 @@ FORMATS = tuple(e.lstrip(".") for e in MOTION_EXTENSIONS)
 @click.option("-f", "--force", is_flag=True, help="overwrite existing outputs")
 @click.option("--json", "as_json", is_flag=True, help="print one JSON object on stdout")
 @click.option("-j", "--jobs", type=click.IntRange(min=1), default=None,
-              help="folder INPUT: worker processes (default: one per CPU; 1: serial)")
+              help="a folder INPUT (default: one per CPU) or several files (default: one at a time, each "
+                   "verified on its own line): worker processes (1: serial)")
 @click.option("--scheduler", default=None, metavar="ADDRESS",
-              help="folder INPUT: a Dask cluster (tcp://host:8786), or 'local' (needs mocapz[dask])")
+              help="a folder or several files: a Dask cluster (tcp://host:8786), or 'local' (needs mocapz[dask])")
 @click.option("--block", default=None, metavar="LENGTH",
               help="code the clip in independent blocks of LENGTH (4s, 240 frames; 0: one block), so that "
                    "decompress --frames decodes only the blocks it needs (default: the codec's)")
@@ -87,8 +88,15 @@ def compress(inputs: tuple[Path, ...], output: Path | None, to_stdout: bool, cod
             raise OptionError("give -c or -o, not both")
         output = Path("-")
     folders = [p for p in inputs if str(p) != "-" and p.is_dir()]
-    if (jobs is not None or scheduler is not None) and not folders:
-        raise OptionError("--jobs and --scheduler apply when an INPUT is a folder")
+    files = [p for p in inputs if p not in folders]
+    pooled = jobs is not None or scheduler is not None  # the files too go to worker processes (or Dask)
+    if pooled and not folders and len(files) < 2:
+        raise OptionError("--jobs and --scheduler apply to a folder INPUT or several files")
+    if pooled and any(str(p) == "-" for p in files):
+        raise OptionError("--jobs and --scheduler take files and folders, not standard input (-)")
+    if (folders or pooled) and (frames is not None or start is not None or end is not None or unit is not None):
+        raise OptionError("--frames, --start, --end and --unit apply to files compressed one at a time (not to a "
+                          "folder INPUT or with --jobs / --scheduler)")
     if asf is not None and (len(inputs) > 1 or folders):
         raise OptionError("--asf applies to one .amc file; in a folder each .amc uses the .asf beside it")
     many = len(inputs) > 1 or bool(folders)
@@ -107,7 +115,12 @@ def compress(inputs: tuple[Path, ...], output: Path | None, to_stdout: bool, cod
         out_dir = output / path.name if (output is not None and len(inputs) > 1) else (output or path)
         failed += run_batch_compress(path, out_dir, info.name, options, jobs, scheduler, force, as_json, say, block,
                                      precision)
-    files = [p for p in inputs if p not in folders]
+    if pooled and files:
+        from mocapz.cli.batch import run_batch_files
+
+        failed += run_batch_files(files, output if many else None, info.name, options, jobs, scheduler, force,
+                                  as_json, say, block, precision)
+        files = []
     results, bad = each_input(files, lambda p: _one(p, _output_for(p, output, many), info.name, options, block,
                                                     asf, fmt_name, (frames, start, end), unit, force, say,
                                                     precision), many)

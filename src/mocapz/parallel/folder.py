@@ -19,7 +19,7 @@ from typing import Any
 from mocapz.errors import MocapzError
 from mocapz.format.extras_precision import ExtrasPrecision
 from mocapz.parallel.clip import ClipJob, ClipResult, clip_modules, compress_clip, failure_reason
-from mocapz.parallel.discover import plan
+from mocapz.parallel.discover import OUTPUT_SUFFIX, plan
 from mocapz.parallel.pool import Pool
 from mocapz.parallel.progress import BatchProgress
 from mocapz.parallel.report import BatchReport
@@ -60,16 +60,52 @@ def compress_folder(input_dir: str | os.PathLike[str], output_dir: str | os.Path
         :class:`~mocapz.errors.MocapzError` only for problems with the whole batch (no such folder, unknown
         codec, unreachable scheduler...). The bytes written do not depend on ``jobs`` or ``scheduler``.
     """
+    options = _checked(codec, options, block)
+    out_root = _folder(output_dir)
+    jobs_list = plan(input_dir, out_root)
+    out_root.mkdir(parents=True, exist_ok=True)
+    return _run(jobs_list, codec, options, jobs, scheduler, force, progress, pool, on_result, block, precision)
+
+
+def compress_files(paths: list[str | os.PathLike[str]], output_dir: str | os.PathLike[str] | None,
+                   codec: str = "lossless", options: dict[str, Any] | None = None, *, jobs: int | None = None,
+                   scheduler: str | None = None, force: bool = False, progress: bool = False,
+                   block: int | float | str | None = None, precision: ExtrasPrecision | None = None) -> BatchReport:
+    """Compress the motion files ``paths`` (``mocapz compress A.bvh B.c3d ... -j N``), each into
+    ``output_dir/NAME.mcz`` or, without an output folder, ``NAME.mcz`` beside it; the arguments, the report and
+    the bytes as :func:`compress_folder`'s (a clip's name in the report: its path as given)."""
+    options = _checked(codec, options, block)
+    out_root = None if output_dir is None else _folder(output_dir)
+    jobs_list = [ClipJob(i, str(path), str(Path(path).resolve()),
+                         str((Path(path) if out_root is None else out_root / Path(path).name).resolve())
+                         + OUTPUT_SUFFIX) for i, path in enumerate(paths)]
+    if out_root is not None:
+        out_root.mkdir(parents=True, exist_ok=True)
+    return _run(jobs_list, codec, options, jobs, scheduler, force, progress, None, None, block, precision)
+
+
+def _checked(codec: str, options: dict[str, Any] | None, block: int | float | str | None) -> dict[str, Any]:
+    """The codec's options, checked, and the block length checked (a bad one: one error, not one per clip)."""
     from mocapz.blocking import block_frames
     from mocapz.codecs import get_codec
 
-    options = get_codec(codec).validate(options or {})  # a bad codec or option: one error, not one per clip
+    checked = get_codec(codec).validate(options or {})
     block_frames(block, 1.0, 0.0)
+    return checked
+
+
+def _folder(output_dir: str | os.PathLike[str]) -> Path:
     out_root = Path(output_dir)
     if out_root.exists() and not out_root.is_dir():
         raise MocapzError(f"{out_root}: output exists and is not a folder")
-    jobs_list = plan(input_dir, out_root)
-    out_root.mkdir(parents=True, exist_ok=True)
+    return out_root
+
+
+def _run(jobs_list: list[ClipJob], codec: str, options: dict[str, Any], jobs: int | None, scheduler: str | None,
+         force: bool, progress: bool, pool: Pool | None, on_result: Callable[[ClipResult], None] | None,
+         block: int | float | str | None, precision: ExtrasPrecision | None) -> BatchReport:
+    """Run :func:`~mocapz.parallel.clip.compress_clip` on every job with checked ``options`` (see
+    :func:`compress_folder`)."""
     worker = functools.partial(compress_clip, codec=codec, options=options, force=force, block=block,
                                precision=precision)
     results: list[ClipResult | None] = [None] * len(jobs_list)
