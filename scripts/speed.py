@@ -38,6 +38,7 @@ Writes docs/benchmarks/speed.md (or --out) and prints it.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import os
 import resource
@@ -46,6 +47,8 @@ import subprocess
 import sys
 import tempfile
 import time
+from collections.abc import Callable
+from contextlib import AbstractContextManager as ContextManager
 from pathlib import Path
 from typing import Any
 
@@ -213,32 +216,24 @@ def compile_bytecode() -> None:
 
 def run_cli(path: Path, codec: str, repeat: int, limit: float, tmp: Path) -> dict[str, Any]:
     """Wall time (best of ``repeat``) of the whole command ``mocapz compress`` (start-up and file read included)."""
-    exe = Path(sys.executable).parent / "mocapz"
-    flags = [f"--{k.replace('_', '-')}={v}" for k, v in FIXED.get(codec, {}).items()]
-    cmd = [str(exe), "compress", str(path), "-o", str(tmp / f"cli.{codec}.mcz"), "--codec", codec, "-f", "-q", *flags]
-    best = None
-    for _ in range(repeat):
-        t = time.perf_counter()
-        try:
-            res = subprocess.run(cmd, capture_output=True, text=True, timeout=limit, check=False,
-                                 env={**os.environ, **ONE_THREAD})
-        except subprocess.TimeoutExpired:
-            return {"over": limit}
-        if res.returncode != 0:
-            return {"error": (res.stderr.strip().splitlines() or ["?"])[-1][:160]}
-        dt = time.perf_counter() - t
-        best = dt if best is None else min(best, dt)
-    return {"cli_s": best}
+    return _command_time([path], lambda: contextlib.nullcontext(str(tmp / f"cli.{codec}.mcz")), codec, repeat, limit)
 
 
 def run_library(paths: list[Path], codec: str, repeat: int, limit: float) -> dict[str, Any]:
     """Wall time (best of ``repeat``) of one ``mocapz compress CLIPS... -o DIR`` over every clip (a library
     compressed in one command, serially: start-up and numba's loading paid once, every file read included)."""
+    return _command_time(paths, tempfile.TemporaryDirectory, codec, repeat, limit)
+
+
+def _command_time(paths: list[Path], output: Callable[[], ContextManager[str]], codec: str, repeat: int,
+                  limit: float) -> dict[str, Any]:
+    """``{"cli_s": best wall time}`` of ``mocapz compress PATHS... -o OUT`` (``output()`` gives OUT for each run)
+    with the codec's fixed options, on one thread; or ``{"over": limit}``, ``{"error": its last line}``."""
     exe = Path(sys.executable).parent / "mocapz"
     flags = [f"--{k.replace('_', '-')}={v}" for k, v in FIXED.get(codec, {}).items()]
     best = None
     for _ in range(repeat):
-        with tempfile.TemporaryDirectory() as out:
+        with output() as out:
             cmd = [str(exe), "compress", *map(str, paths), "-o", out, "--codec", codec, "-f", "-q", *flags]
             t = time.perf_counter()
             try:
