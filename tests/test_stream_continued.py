@@ -181,3 +181,47 @@ def test_pga_stream_blocks_take_the_correction_alone_where_smaller() -> None:
     got = [p for i in range(0, len(data), 3000) for p in dec.feed(data[i:i + 3000])]
     assert np.array_equal(np.concatenate([g.values for g in got]), whole.values)
     assert np.array_equal(mocapz.decompress(data, frames=slice(600, 700)).values, whole.values[600:700])
+
+
+def test_feet_held_across_the_edge_of_a_block_on_the_model() -> None:
+    """A block on a model base starts afresh at its edge (no continuation): the feet's windows across its first
+    edge, from the block before as decoded, are verified with the block's own. 09_06 on the model (geodesics
+    given: a 128-frame block, then 14 frames): the stream's added foot skate was 2.59 cm/s (METRICS.md; issue 11
+    allows 0.5), now under the limit, as the file's; the target holds."""
+    m = mocapz.load(data_path("cmu/bvh/09_06.bvh"))
+    rng = np.random.default_rng(1)
+    enc = mocapz.StreamEncoder(m, "pga", max_error="1cm", geodesics=16)
+    out, i = bytearray(), 0
+    while i < m.n_frames:
+        k = int(rng.integers(1, 60))
+        out += enc.write(m.values[i:i + k])
+        i += k
+    rep = mocapz.evaluate(m, mocapz.decompress(bytes(out + enc.close())))
+    assert rep.foot_skate * m.unit_cm <= 0.5 and rep.max_err_cm <= 1.0 + 1e-9
+
+
+def test_feet_windows_across_a_block_edge() -> None:
+    """feet._planted with the frames before a block: the windows that reach the block count (from the edge on),
+    those wholly before it do not, and the samples to tighten land in the block's own frames."""
+    from mocapz.codecs.correction import feet
+    from mocapz.metrics.contacts import Contacts
+
+    fps, frames, pre = 120.0, 40, 12
+    still = np.zeros((pre + frames, 1, 3))
+    original = still.copy()
+    decoded = still.copy()
+    decoded[pre:, 0, 0] = 0.05  # the block's decoded foot sits 0.05 units off: a jump at its first edge only
+    steps = np.ones((pre + frames - 1, 1), dtype=bool)
+    contacts = Contacts(1, np.array([0]), steps[pre:])
+    before = (decoded[:pre], original[:pre], steps[:pre])
+    alone = list(feet._planted(contacts, original[pre:], decoded[pre:], fps))
+    assert all(float(np.abs(x).max()) == 0.0 for *_, x, _ in alone)  # within the block the foot is still
+    edged = {w: (idx, excess, k) for w, _, idx, excess, k in feet._planted(contacts, original[pre:], decoded[pre:],
+                                                                          fps, before)}
+    for w, (idx, excess, k) in edged.items():
+        assert k == pre and idx[0] == pre - w  # the first window that reaches the block's first frame
+        assert excess[pre - w] == pytest.approx(0.05 * fps / w)
+    # the block's mean over its windows: 6 units/s on one frame-to-frame window of 40, 0.5 on 12 of 40 windows
+    worst, tighten = feet.added_speed(contacts, original[pre:], decoded[pre:], fps, 0.1, None, before)
+    assert worst == pytest.approx(0.15) and tighten.shape == (frames, 1) and tighten[0, 0]
+    assert feet.added_speed(contacts, original[pre:], decoded[pre:], fps, 0.1)[0] == 0.0

@@ -47,6 +47,12 @@ def _whole(ctx: BlockOf) -> tuple[np.ndarray, np.ndarray]:
 
 def contacts(ctx: BlockOf) -> Contacts:
     """The whole clip's contacts, cut to the block's frames."""
+    whole = contacts_of_clip(ctx)
+    return Contacts(whole.up, whole.feet, whole.steps[ctx.start:max(ctx.stop - 1, ctx.start)])
+
+
+def contacts_of_clip(ctx: BlockOf) -> Contacts:
+    """The whole clip's contacts (computed once)."""
     if "contacts" not in ctx.cache:
         pos, valid = _whole(ctx)
         with warnings.catch_warnings():  # markers missing in every frame
@@ -56,7 +62,7 @@ def contacts(ctx: BlockOf) -> Contacts:
             pairs = 2 if "stream" in ctx.cache and isinstance(ctx.clip, MarkerMotion) else 1
             ctx.cache["contacts"] = find_contacts(ctx.clip, pos, valid, ctx.clip.unit_cm, pairs)
     whole: Contacts = ctx.cache["contacts"]
-    return Contacts(whole.up, whole.feet, whole.steps[ctx.start:max(ctx.stop - 1, ctx.start)])
+    return whole
 
 
 def cached(ctx: BlockOf, key: str, make: Any) -> Any:
@@ -111,17 +117,39 @@ def edge(ctx: BlockOf | None) -> Edge | None:
     """The last :data:`EDGE` frames before a block as the blocks before it were coded (none for the first block
     or a clip of its own): the accelerations at the block's first frames reach back to them, and the file's
     jitter counts those as it counts any other (a block that left them out would add jitter at every edge)."""
+    kept = before_block(ctx)
+    return None if kept is None else (kept[0][-EDGE:], kept[1][-EDGE:], kept[2][-EDGE:])
+
+
+def before_block(ctx: BlockOf | None) -> Edge | None:
+    """Every frame kept from before a block (:func:`tail`: :data:`EDGE` or more), or None."""
     return None if ctx is None else ctx.cache.get("edge")
 
 
-def tail(before: Edge | None, decoded: np.ndarray, original: np.ndarray, valid: np.ndarray) -> Edge:
-    """The last :data:`EDGE` frames of the clip so far (the frames ``before`` the block, then the block's own):
-    positions ``decoded`` and ``original`` ``(frames, points, 3)`` and present samples ``valid``
-    ``(frames, points)``; what the next block's :func:`edge` gives."""
+def tail(before: Edge | None, decoded: np.ndarray, original: np.ndarray, valid: np.ndarray, keep: int = EDGE
+         ) -> Edge:
+    """The last ``keep`` (at least :data:`EDGE`) frames of the clip so far (the frames ``before`` the block, then
+    the block's own): positions ``decoded`` and ``original`` ``(frames, points, 3)`` and present samples ``valid``
+    ``(frames, points)``; what the next block's :func:`edge` and :func:`feet_before` give."""
+    keep = max(keep, EDGE)
     if before is not None:
         decoded, original, valid = (np.concatenate([b, x]) for b, x in zip(before, (decoded, original, valid),
                                                                            strict=True))
-    return (np.array(decoded[-EDGE:]), np.array(original[-EDGE:]), np.array(valid[-EDGE:]))
+    return (np.array(decoded[-keep:]), np.array(original[-keep:]), np.array(valid[-keep:]))
+
+
+def feet_before(ctx: BlockOf | None, frames: int) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    """Up to ``frames`` frames before a block, as the blocks before it were decoded, for the feet's windows that
+    end in the block: decoded and original positions ``(n, points, 3)`` and the whole clip's planted steps from
+    the first of them into the block's first frame ``(n, feet)``; None for a clip of its own or a first block."""
+    kept = before_block(ctx)
+    if ctx is None or kept is None:
+        return None
+    n = min(frames, len(kept[0]), ctx.start)
+    if n <= 0:
+        return None
+    steps = contacts_of_clip(ctx).steps[ctx.start - n:ctx.start]
+    return kept[0][-n:], kept[1][-n:], steps
 
 
 def carried_skate(ctx: BlockOf | None) -> dict | None:

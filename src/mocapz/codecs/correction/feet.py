@@ -46,10 +46,12 @@ def foot_groups(motion: AnyMotion, contacts: Contacts | None, positions: np.ndar
 
 
 Carried = dict[tuple[int, int], tuple[float, int]]  # (window steps, foot point) -> (summed added speed, windows)
+Before = tuple[np.ndarray, np.ndarray, np.ndarray]  # frames before a block: decoded, original, planted steps
 
 
 def added_speed(contacts: Contacts | None, original: np.ndarray, pos: np.ndarray, fps: float,
-                limit: float, carried: Carried | None = None) -> tuple[float, np.ndarray]:
+                limit: float, carried: Carried | None = None, before: Before | None = None
+                ) -> tuple[float, np.ndarray]:
     """The largest mean horizontal speed decoded positions ``pos`` add to a planted foot of the ``original``
     (both ``(frames, points, 3)``, file units), over each foot's planted steps, frame to frame and over 0.1 s
     windows (file units per second), and ``(frames, points)`` True on the foot samples whose added speed,
@@ -57,10 +59,11 @@ def added_speed(contacts: Contacts | None, original: np.ndarray, pos: np.ndarray
     before this one in a stream (:func:`speed_sums`): a foot then passes when its mean over the block or over
     the stream so far (METRICS.md takes it over the whole file) is within the limit, either keeping the
     stream's within it, and the samples to tighten make up the smaller excess (only this block's samples: a
-    stream whose mean sits at the limit is not asked to bring a long past down to half of it)."""
+    stream whose mean sits at the limit is not asked to bring a long past down to half of it). ``before``: a
+    block's frames before it as decoded (:func:`.context.feet_before`): the windows across its first edge count."""
     out = np.zeros(pos.shape[:2], dtype=bool)
     worst = 0.0
-    for w, f, idx, excess in _planted(contacts, original, pos, fps):
+    for w, f, idx, excess, pre in _planted(contacts, original, pos, fps, before):
         own = float(excess[idx].mean())  # the block's own mean
         added, need = own, (own - 0.5 * limit) * idx.size
         if carried is not None:  # either mean within the limit will do (each keeps the stream's so far within it)
@@ -73,34 +76,45 @@ def added_speed(contacts: Contacts | None, original: np.ndarray, pos: np.ndarray
         order = idx[np.argsort(-excess[idx])]
         n = int(np.searchsorted(np.cumsum(np.maximum(excess[order], 0.0)), need)) + 1
         for t in order[:n]:
-            out[t : t + w + 1, f] = True
+            out[max(t - pre, 0) : t + w + 1 - pre, f] = True
     return worst, out
 
 
 def speed_sums(contacts: Contacts | None, original: np.ndarray, pos: np.ndarray, fps: float,
-               carried: Carried | None = None) -> Carried:
+               carried: Carried | None = None, before: Before | None = None) -> Carried:
     """``carried`` (empty: None) plus the added speed of ``pos`` summed over each foot's planted windows and
-    their number, per window length (what :func:`added_speed` takes for the blocks after this one)."""
+    their number, per window length (what :func:`added_speed` takes for the blocks after this one); ``before``
+    as :func:`added_speed`'s."""
     out = dict(carried or {})
-    for w, f, idx, excess in _planted(contacts, original, pos, fps):
+    for w, f, idx, excess, _ in _planted(contacts, original, pos, fps, before):
         s0, n0 = out.get((w, int(f)), (0.0, 0))
         out[(w, int(f))] = (s0 + float(excess[idx].sum()), n0 + int(idx.size))
     return out
 
 
-def _planted(contacts: Contacts | None, original: np.ndarray, pos: np.ndarray, fps: float
-             ) -> Iterator[tuple[int, int, np.ndarray, np.ndarray]]:
-    """Per window length ``w`` (1 and 0.1 s) and foot point ``f`` with planted windows: ``(w, f, idx, excess)``,
-    the planted windows' first frames and the added speed ``(frames - w,)`` of every window."""
-    if contacts is None or not contacts.steps.any() or pos.shape[0] < 3:
+def _planted(contacts: Contacts | None, original: np.ndarray, pos: np.ndarray, fps: float,
+             before: Before | None = None) -> Iterator[tuple[int, int, np.ndarray, np.ndarray, int]]:
+    """Per window length ``w`` (1 and 0.1 s) and foot point ``f`` with planted windows: ``(w, f, idx, excess,
+    pre)``, the planted windows' first frames and the added speed ``(frames - w,)`` of every window, counted from
+    the ``pre`` frames ``before`` the block (decoded, original, their planted steps into the block; 0 without):
+    only the windows that reach a frame of the block (those wholly before it were the blocks' before)."""
+    if contacts is None:
+        return
+    steps, pre = contacts.steps, 0
+    if before is not None and before[0].shape[0]:
+        pre = before[0].shape[0]
+        pos, original = np.concatenate([before[0], pos]), np.concatenate([before[1], original])
+        steps = np.concatenate([before[2], steps])
+    if not steps.any() or pos.shape[0] < 3:
         return
     for w in sorted({1, window_steps(fps)}):
         if pos.shape[0] <= w:
             continue
         for i, f in enumerate(contacts.feet):
-            full = full_windows(contacts.steps[:, i], w)
+            full = full_windows(steps[:, i], w)
+            full[:max(pre - w, 0)] = False
             if not full.any():
                 continue
             excess = (horizontal_speeds(np.nan_to_num(pos[:, f]), contacts.horizontal, w, fps)
                       - horizontal_speeds(original[:, f], contacts.horizontal, w, fps))
-            yield w, f, np.flatnonzero(full), excess
+            yield w, f, np.flatnonzero(full), excess, pre

@@ -22,6 +22,7 @@ from mocapz.codecs.target import ErrorMetric, Errors
 from mocapz.format.entropy import encode_int_matrix, pack_uint64
 from mocapz.metrics.contacts import find_contacts
 from mocapz.metrics.figures import point_errors
+from mocapz.metrics.skate import window_steps
 from mocapz.model.kinematics import forward_kinematics, forward_positions
 from mocapz.model.motion import AnyMotion, Motion
 
@@ -158,17 +159,23 @@ class Clip:
         return feet.foot_groups(self.motion, self.contacts, self.positions, self.layout.n_groups,
                                 FOOT_REACH * self.body, None if self.chain is None else self.chain.feedback)
 
-    def skate(self, pos: np.ndarray) -> tuple[float, np.ndarray]:
-        """The largest speed decoded positions ``(frames, points, 3)`` add to a planted foot and the samples to
-        tighten (:func:`.feet.added_speed`)."""
+    def skate(self, pos: np.ndarray, base: np.ndarray) -> tuple[float, np.ndarray]:
+        """The largest speed decoded positions ``(frames, points, 3)`` on ``base`` add to a planted foot and the
+        samples to tighten (:func:`.feet.added_speed`)."""
         return feet.added_speed(self.contacts, self.positions, pos, float(self.motion.frame_rate),
-                                self.skate_limit(), context.carried_skate(self.whole))
+                                self.skate_limit(), context.carried_skate(self.whole), self.feet_before(base))
 
-    def skate_sums(self, pos: np.ndarray) -> feet.Carried | None:
-        """A block's: the feet's added speed of decoded positions ``(frames, points, 3)`` summed with the blocks'
-        before (:func:`.feet.speed_sums`); None for a clip of its own."""
+    def skate_sums(self, pos: np.ndarray, base: np.ndarray) -> feet.Carried | None:
+        """A block's: the feet's added speed of decoded positions ``(frames, points, 3)`` on ``base`` summed with
+        the blocks' before (:func:`.feet.speed_sums`); None for a clip of its own."""
         return None if self.whole is None else feet.speed_sums(
-            self.contacts, self.positions, pos, float(self.motion.frame_rate), context.carried_skate(self.whole))
+            self.contacts, self.positions, pos, float(self.motion.frame_rate), context.carried_skate(self.whole),
+            self.feet_before(base))
+
+    def feet_before(self, base: np.ndarray) -> feet.Before | None:
+        """The frames before a block starting afresh on ``base`` (not continuing: :func:`.context.feet_before`)."""
+        fresh = self.contacts is not None and self.prefix_of(base) is None
+        return context.feet_before(self.whole, window_steps(self.motion.frame_rate)) if fresh else None
 
     def point_bounds(self, e: float) -> np.ndarray:
         """``(frames, points)`` position bounds: ``e`` on every point (planted feet are held by their speed,
@@ -286,8 +293,9 @@ def fit(clip: Clip, base: np.ndarray, e: float, relax_by: float = bounds.RELAX, 
     frames = x.shape[0]
     del x, y, cap  # what is left to do needs the positions' figures and the integers only
     errors, added = clip.metric.of_positions(pos), clip.added_energy(pos)
-    skated = clip.skate_sums(pos)
-    tail = None if clip.whole is None else context.tail(context.edge(clip.whole), pos, clip.positions, clip.valid)
+    skated = clip.skate_sums(pos, base)
+    tail = None if clip.whole is None else context.tail(context.before_block(clip.whole), pos, clip.positions,
+                                                         clip.valid, window_steps(clip.motion.frame_rate))
     del pos  # the integers are packed without it (the entropy coders' work space comes on top)
     release_free_memory()  # the rounds' freed arrays, not beside zstd's work space (mmap-ed, level 19)
     seek = window.seekable(frames)  # a long clip: its streams laid out for random access (c.head format 3)
@@ -334,7 +342,7 @@ def _rounds(clip: Clip, x: np.ndarray, base: np.ndarray, t0: np.ndarray, levels:
             jit, shaky = clip.jitter(pos)
             if shaky.any():
                 todo.append((shaky, cap + JITTER_LEVELS, 2, None))
-        skate, sliding = clip.skate(pos)
+        skate, sliding = clip.skate(pos, base)
         if skate > clip.skate_limit() and sliding.any():  # the joints above the feet, or every joint above them
             allowed = feet if skate < STALLED * slid else None  # if that did not help
             todo.append((sliding, cap + JITTER_LEVELS, 1, allowed))
