@@ -36,7 +36,7 @@ def test_encoder_writes_the_golden_bytes(entry: dict) -> None:
 
 
 OLDER = [(d, e) for d in ("format1", "format2", "format3", "format4", "format5", "format6",
-                                  "format7", "format8")
+                                  "format7")
          for e in json.loads((HERE / d / "golden.json").read_text())]
 
 
@@ -51,9 +51,7 @@ def test_earlier_formats_still_decode(folder: str, entry: dict) -> None:
     ``format5``, the streams before a continued block predicted its first details across its edge (``c.head``
     format 4, not 5); ``format6``, the files that moved when a file's default ``effort`` became fast (encoder
     only: a file of either effort decodes by the same decoder); ``format7``, the files that moved when the byte
-    planes' zstd search became btopt (:data:`mocapz.format.planes.STRATEGY`; any zstd frame decodes alike);
-    ``format8``, the blocked files that moved when a block starting afresh took the feet's windows across its
-    first edge into its check (encoder only: :func:`mocapz.codecs.correction.context.feet_before`)."""
+    planes' zstd search became btopt (:data:`mocapz.format.planes.STRATEGY`; any zstd frame decodes alike)."""
     data = (HERE / folder / entry["file"]).read_bytes()
     assert hashlib.sha256(data).hexdigest() == entry["sha256"]
     assert values_hash(mocapz.decompress(data)) == entry["values_sha256"]

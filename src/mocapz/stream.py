@@ -16,7 +16,8 @@ file can start (:func:`mocapz.blocking.iter_spans`). What a block's correction d
 file (foot contacts, body height) it decides on the last :data:`HISTORY_S` seconds (more than the contacts' floor
 window, so a stream's contacts are the whole file's; of markers it holds the two lowest pairs, either of which the
 whole file's lowest two may be), and the jitter allowance is spent block after block against the energy seen so
-far (the accelerations across a block's first edge included); what the correction keeps from block to block (its
+far (the accelerations across a block's first edge included), as the feet's speed is (a block on a model, which
+starts afresh, counts the windows across its first edge); what the correction keeps from block to block (its
 column layout, so the tolerance codes repeat and are written once) lives in ``cache["stream"]``. So memory stays
 bounded whatever the stream's length.
 The bytes (:mod:`mocapz.format.stream`) are a ``.mcz`` that :func:`mocapz.decompress` reads.

@@ -9,7 +9,8 @@ original's: a calm block alone would get almost none). Each is computed once on 
 the clip's allowance for the frames up to its end leaves after the blocks before it (what a block leaves
 unused passes on), so the clip's added jitter stays within the allowed fraction of its energy; a block's energy
 takes in the accelerations across its first edge, from the last frames of the block before as coded
-(:func:`edge`), as the file's jitter does.
+(:func:`edge`), as the file's jitter does; a block on a model base (which starts afresh at its edge) takes the
+feet's windows across its first edge into its check likewise (:func:`feet_before`), as the file's foot skate does.
 """
 
 from __future__ import annotations

@@ -173,9 +173,9 @@ class Clip:
             self.feet_before(base))
 
     def feet_before(self, base: np.ndarray) -> feet.Before | None:
-        """The frames before a block starting afresh on ``base`` (not continuing: :func:`.context.feet_before`)."""
-        fresh = self.contacts is not None and self.prefix_of(base) is None
-        return context.feet_before(self.whole, window_steps(self.motion.frame_rate)) if fresh else None
+        """The frames before a block on a model ``base`` (it starts afresh: :func:`.context.feet_before`)."""
+        model = self.contacts is not None and base is not self._zero
+        return context.feet_before(self.whole, window_steps(self.motion.frame_rate)) if model else None
 
     def point_bounds(self, e: float) -> np.ndarray:
         """``(frames, points)`` position bounds: ``e`` on every point (planted feet are held by their speed,
