@@ -37,8 +37,10 @@ def masked_means(x: np.ndarray, o: np.ndarray, labels: np.ndarray, k: int) -> np
     if k * len(labels) <= 4_000_000:
         onehot = np.zeros((k, len(labels)))
         onehot[labels, np.arange(len(labels))] = 1.0
-        num, den, plain = onehot @ (o * x), onehot @ o, onehot @ x
-        cnt = onehot.sum(axis=1)[:, None]
+        num, den = onehot @ (o * x), onehot @ o
+        if (den > 1e-12).all():  # every dimension observed in every cluster: the weighted means alone
+            return num / den
+        plain, cnt = onehot @ x, onehot.sum(axis=1)[:, None]
     else:
         order = np.argsort(labels, kind="stable")
         lab = labels[order]
@@ -58,21 +60,30 @@ def sample_errors(x: np.ndarray, o: np.ndarray, centers: np.ndarray, per_member:
     return np.sqrt((o * (x - centers) ** 2).sum(axis=1) / cnt)
 
 
-def _sq_dist(x: np.ndarray, o: np.ndarray, centers: np.ndarray) -> np.ndarray:
-    """Masked squared distances ``(N, K)``: ``sum_d o (x - c)**2``."""
-    return np.maximum((o * x * x).sum(axis=1)[:, None] - 2.0 * (o * x) @ centers.T + o @ (centers * centers).T,
-                      0.0)
+def _sq_dist(x: np.ndarray, o: np.ndarray, centers: np.ndarray,
+             weighted: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
+    """Masked squared distances ``(N, K)``: ``sum_d o (x - c)**2``. ``weighted``: ``o * x`` and ``(o * x * x).sum(
+    axis=1)``, when the caller has them (the same numbers)."""
+    ox, sq = weighted if weighted is not None else _weighted(x, o)
+    return np.maximum(sq[:, None] - 2.0 * ox @ centers.T + o @ (centers * centers).T, 0.0)
+
+
+def _weighted(x: np.ndarray, o: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``o * x`` and ``(o * x * x).sum(axis=1)`` of :func:`_sq_dist`."""
+    ox = o * x
+    return ox, (ox * x).sum(axis=1)
 
 
 def _bisect(x: np.ndarray, o: np.ndarray, iters: int = 8) -> np.ndarray:
     """Split rows into two groups by 2-means (masked); returns a boolean side per row."""
     mean = masked_means(x, o, np.zeros(len(x), dtype=np.int64), 1)
-    a = int(np.argmax(_sq_dist(x, o, mean)[:, 0]))
-    b = int(np.argmax(_sq_dist(x, o, x[a : a + 1])[:, 0]))
+    weighted = _weighted(x, o)
+    a = int(np.argmax(_sq_dist(x, o, mean, weighted)[:, 0]))
+    b = int(np.argmax(_sq_dist(x, o, x[a : a + 1], weighted)[:, 0]))
     centers = np.stack([x[a], x[b]])
     side = np.zeros(len(x), dtype=bool)
     for _ in range(iters):
-        d = _sq_dist(x, o, centers)
+        d = _sq_dist(x, o, centers, weighted)
         new = d[:, 1] < d[:, 0]
         if new.all() or not new.any():
             new = np.zeros(len(x), dtype=bool)

@@ -18,6 +18,7 @@ import numpy as np
 
 from mocapz.codecs.gaps import pack_mask, unpack_mask
 from mocapz.codecs.patterns.quantise import decode_trajectory
+from mocapz.codecs.patterns.rotvec import continuous_rotvec, euler_rotvec
 from mocapz.errors import FormatError
 from mocapz.format.entropy import read_uvarint, write_uvarint
 from mocapz.model.skeleton import Skeleton
@@ -157,8 +158,7 @@ class SkeletalFeatures:
         out = []
         rc = self.rot_cols[j]
         if len(rc) == 3:
-            from scipy.spatial.transform import Rotation  # noqa: I001 (on use: scipy loads slowly)
-            rv = Rotation.from_euler(self.sk.rotation_order[j].upper(), channels[:, rc] * self.scale).as_rotvec()
+            rv = euler_rotvec(self.sk.rotation_order[j], channels[:, rc] * self.scale)
             out.append(continuous_rotvec(rv) * self.lever[j])
         elif rc:
             out.append(np.unwrap(channels[:, rc] * self.scale, axis=0) * self.lever[j])
@@ -191,18 +191,3 @@ class SkeletalFeatures:
             if pc:
                 out[:, pc] = x[:, c : c + len(pc)]
                 c += len(pc)
-
-
-def continuous_rotvec(rv: np.ndarray) -> np.ndarray:
-    """Rotation vectors ``(T, 3)`` made continuous over time (a turn past pi keeps growing)."""
-    out = rv.copy()
-    norms = np.linalg.norm(rv, axis=1)
-    if not (norms > 2.0).any():
-        return out
-    for t in range(1, len(out)):
-        n = np.linalg.norm(out[t])
-        if n > 1e-9:
-            alt = out[t] * (1.0 - 2.0 * np.pi / n)
-            if np.linalg.norm(alt - out[t - 1]) < np.linalg.norm(out[t] - out[t - 1]):
-                out[t] = alt
-    return out
