@@ -9,7 +9,7 @@ from conftest import data_path
 from scipy.spatial.transform import Rotation
 
 import mocapz
-from mocapz.model.kinematics import euler_rotations, local_rotations
+from mocapz.model.kinematics import POSITION_CHUNK, euler_rotations, local_rotations
 
 
 @pytest.mark.parametrize("order", ["XYZ", "XZY", "YXZ", "YZX", "ZXY", "ZYX", "ZX", "YZ", "X", "XYX"])
@@ -48,3 +48,18 @@ def test_euler_angles_invert_euler_rotations(order: str) -> None:
     b = euler_angles(r, order)
     assert np.abs(euler_rotations(b, order) - r).max() < 1e-12
     assert np.abs(b[10:] - a[10:]).max() < 1e-12
+
+
+def test_local_rotations_in_chunks_are_the_whole_clips() -> None:
+    """Frames a chunk at a time (small temporaries) give the bits of every frame at once."""
+    m = mocapz.load(data_path("cmu/bvh/06_13.bvh"))
+    sk = m.skeleton
+    chunked = local_rotations(sk, m.channels)
+    assert m.n_frames > 2 * POSITION_CHUNK
+    whole = np.broadcast_to(np.eye(3), chunked.shape).copy()
+    scale = np.pi / 180.0
+    for j, (sl, chs, order) in enumerate(zip(sk.channel_slices(), sk.channels, sk.rotation_order, strict=True)):
+        if order:
+            cols = [sl.start + chs.index(f"{a}rotation") for a in order]
+            whole[:, j] = euler_rotations(m.channels[:, cols] * scale, order)
+    assert np.array_equal(chunked, whole)

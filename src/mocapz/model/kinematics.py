@@ -6,7 +6,8 @@ import numpy as np
 
 from mocapz.model.skeleton import Skeleton
 
-POSITION_CHUNK = 1024  # frames whose rotations :func:`forward_positions` holds at once
+POSITION_CHUNK = 1024  # frames whose rotations :func:`forward_positions` (and whose temporaries
+# :func:`local_rotations`) holds at once
 
 
 def axis_rotations(angle: np.ndarray, axis: int) -> np.ndarray:
@@ -71,7 +72,9 @@ def local_rotations(skeleton: Skeleton, channels: np.ndarray) -> np.ndarray:
             joints.append(j)
             cols.append([sl.start + chs.index(f"{a}rotation") for a in order])
     for order, (joints, cols) in by_order.items():
-        out[:, joints] = euler_rotations(channels[:, np.array(cols)] * scale, order)
+        at = np.array(cols)
+        for a in range(0, frames, POSITION_CHUNK):  # a chunk of frames at a time: small temporaries, the same numbers
+            out[a:a + POSITION_CHUNK, joints] = euler_rotations(channels[a:a + POSITION_CHUNK, at] * scale, order)
     turned = [j for j in range(skeleton.n_joints) if not np.array_equal(axis[j], np.eye(3))]
     if turned:  # ASF joint axes: the rotation is about the joint's own frame
         a = axis[turned]

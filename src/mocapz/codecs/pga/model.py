@@ -44,8 +44,7 @@ class PGAModel:
 
     def tangent(self, rotations: np.ndarray) -> np.ndarray:
         """Tangent vectors ``(frames, 3n)`` of poses ``(frames, n, 3, 3)`` at the mean."""
-        w = so3.log(np.swapaxes(self.mean, -1, -2)[None] @ rotations)
-        return w.reshape(rotations.shape[0], -1)
+        return so3.log_between(self.mean, rotations).reshape(rotations.shape[0], -1)
 
     def project(self, rotations: np.ndarray) -> np.ndarray:
         """Geodesic coordinates ``(frames, k)`` of poses ``(frames, n, 3, 3)``."""
@@ -63,7 +62,7 @@ class PGAModel:
 def fit_pga(rotations: np.ndarray, joints: np.ndarray, k: int | None = None) -> PGAModel:
     """Fit the model to poses ``(frames, n, 3, 3)`` of the given joints; keep ``k`` directions (all if None)."""
     mean = so3.karcher_mean(rotations)
-    w = so3.log(np.swapaxes(mean, -1, -2)[None] @ rotations).reshape(rotations.shape[0], -1)
+    w = so3.log_between(mean, rotations).reshape(rotations.shape[0], -1)
     # w is centred at the intrinsic mean (mean of logs is zero), so PCA needs no further centring.
     _, s, vt = np.linalg.svd(w, full_matrices=False)
     variance = s**2 / max(rotations.shape[0], 1)
