@@ -221,15 +221,17 @@ def _parse_motion(lines: list[str], motion_line: int, n_channels: int, path: Pat
             f"frame {row + 1} has {counts[row]} values, the hierarchy declares {n_channels} channels",
             _line_of_row(lines, i, row),
         )
-    try:
-        data = np.array(" ".join(body).split(), dtype=np.float64).reshape(frames, n_channels)
+    try:  # numpy's C parser: no Python string per value (a few times less memory at its peak, faster)
+        data = np.loadtxt(body, dtype=np.float64, comments=None, ndmin=2).reshape(frames, n_channels) if frames \
+            else np.zeros((0, n_channels))
     except ValueError:
         for row, ln in enumerate(body):
             try:
                 [float(t) for t in ln.split()]
             except ValueError:
                 raise FormatError(path, f"non-numeric value in frame {row + 1}", _line_of_row(lines, i, row)) from None
-        raise
+        # numbers Python reads and numpy's parser does not (e.g. "1_000"): Python's reading
+        data = np.array(" ".join(body).split(), dtype=np.float64).reshape(frames, n_channels)
     finite = np.isfinite(data)
     if not finite.all():
         row = int(np.flatnonzero(~finite.all(axis=1))[0])
