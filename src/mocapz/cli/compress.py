@@ -141,6 +141,7 @@ def _one(path: Path, out: Path, codec: str, options: dict[str, Any], block: str 
          fmt_name: str | None, rng: tuple[str | None, float | None, float | None], unit: str | None, force: bool,
          say: Say, precision: ExtrasPrecision | None = None) -> dict[str, Any]:
     """Compress one input to ``out``; return the figures printed (and given with --json)."""
+    from mocapz._memory import release_free_memory
     from mocapz.api import compress_checked, decompress
     from mocapz.codecs import get_codec
     from mocapz.io import load
@@ -177,6 +178,7 @@ def _one(path: Path, out: Path, codec: str, options: dict[str, Any], block: str 
             raise exc.at(name) from None
         elapsed = time.perf_counter() - t0
         advance.stage("verifying every frame")
+        release_free_memory()  # the encoder's freed arrays, not beside the decoder's (peak resident memory)
         decoded = decompress(data)
         rep = evaluate(motion, decoded)
         rest = extras_errors(motion, decoded)
