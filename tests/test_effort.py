@@ -12,7 +12,7 @@ from test_cli import RUN, assert_one_line_error, mocapz_cli
 from test_targets import added_skate
 
 import mocapz
-from mocapz.codecs.correction import fit as fit_module
+from mocapz.codecs.correction import rounds as rounds_module
 from mocapz.codecs.correction import search
 from mocapz.codecs.correction.fit import lifting_levels
 from mocapz.codecs.correction.search import FAST_DEPTH
@@ -108,7 +108,7 @@ def test_fast_falls_back_a_depth_when_its_rounds_run_out(monkeypatch: pytest.Mon
     18 kB). Fast, made to start at depth 5, codes depth 4 as well and keeps the smaller."""
     m = mocapz.load(data_path("cmu/asfamc/lambada.amc"))
     monkeypatch.setattr(search, "FAST_DEPTH", 5 - lifting_levels(m.frame_rate))
-    monkeypatch.setattr(fit_module, "MAX_ROUNDS", 2)
+    monkeypatch.setattr(rounds_module, "MAX_ROUNDS", 2)
     made: list[tuple[int, int, bool, bool]] = []  # (depth, bytes of the correction, rounds settled, 1 cm met)
     real = search.fit
 

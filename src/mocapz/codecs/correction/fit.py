@@ -18,10 +18,10 @@ from mocapz._memory import release_free_memory
 from mocapz.codecs.correction import bounds, context, energy, feet, lifting, window
 from mocapz.codecs.correction.chain import Chain
 from mocapz.codecs.correction.compiled import kernels, note_round
+from mocapz.codecs.correction.rounds import JITTER_LEVELS, rounds
 from mocapz.codecs.target import ErrorMetric, Errors
 from mocapz.format.entropy import encode_int_matrix, pack_uint64
 from mocapz.metrics.contacts import find_contacts
-from mocapz.metrics.figures import point_errors
 from mocapz.metrics.skate import window_steps
 from mocapz.model.kinematics import forward_kinematics, forward_positions
 from mocapz.model.motion import AnyMotion, Motion
@@ -31,12 +31,7 @@ FOOT_REACH = 0.2  # the joints above a foot tightened for its skate reach the fi
 # body height: the knee) that the closed loop aims at the original below it (a one-axis knee: the hip)
 FOOT_START = 2  # levels those joints start tighter than the others on planted frames
 SHRINK = 0.85  # tolerance factor per lifting level (lifting.level_factor): smooth corrections, little jitter
-WIDEN = 2  # frames tightened on each side of a miss
-STALLED = 0.9  # feet whose added speed fell by less than this factor in a round: every joint above them tightened
-VERIFY = 1.0 - 1e-6  # verified against the bound less a hair (the decoder's angle wrapping, float rounding)
-MAX_ROUNDS = 40  # verification rounds (each raises levels by one; the safe levels end it earlier)
 JITTER_UP_TO_CM = 2.0  # targets up to this bound keep the added jitter under JITTER
-JITTER_LEVELS = 8  # how far beyond the safe levels the jitter may tighten (2 ** 4 finer)
 HANDOVER_LEVELS = 2  # a skeleton stream block's last frame, which the next block continues from: this much tighter
 # (half the tolerance; Clip.handover)
 
@@ -287,7 +282,7 @@ def fit(clip: Clip, base: np.ndarray, e: float, relax_by: float = bounds.RELAX, 
     del tighter
     if clip.handover(base):
         levels[-1] = np.minimum(levels[-1] + HANDOVER_LEVELS, cap[-1] + JITTER_LEVELS)
-    (q, y, pos), jit, settled = _rounds(clip, x, base, t0, levels, cap, bound, depth, feet, e <= clip.smooth_up_to())
+    (q, y, pos), jit, settled = rounds(clip, x, base, t0, levels, cap, bound, depth, feet, e <= clip.smooth_up_to())
     if clip.chain is not None:
         clip.chain.forget()  # what the rounds shared
     frames = x.shape[0]
@@ -308,91 +303,3 @@ def fit(clip: Clip, base: np.ndarray, e: float, relax_by: float = bounds.RELAX, 
     }
     size = sum(len(v) + 8 for v in sections.values())
     return Correction(sections, size, errors, e, jit, added, skated, depth, settled, tail)
-
-
-Coding = tuple[np.ndarray, np.ndarray, np.ndarray]  # integers, decoded residual, decoded positions
-
-
-def _rounds(clip: Clip, x: np.ndarray, base: np.ndarray, t0: np.ndarray, levels: np.ndarray, cap: np.ndarray,
-            bound: np.ndarray, depth: int, feet: np.ndarray, smooth: bool) -> tuple[Coding, float, bool]:
-    """The verification rounds of :func:`fit` (``levels`` ``(frames, groups)`` raised in place, at most to
-    ``cap``, or beyond for the jitter and the feet), then :func:`_settle`: the coding, the added jitter and
-    whether the rounds settled (False: :data:`MAX_ROUNDS` ran out, e.g. a planted foot's speed swinging around
-    its limit while the jitter tightens every joint). What
-    a round makes is let go before the next round codes (and all of it on return: peak memory)."""
-    lay, valid = clip.layout, clip.valid
-    jit = 0.0
-    last = None  # the coding of the current levels
-    slid = math.inf  # the feet's added speed the round before
-    settled = False
-    for _ in range(MAX_ROUNDS):
-        q, y, pos = last = clip.quantise(x, base, bounds.tolerances(t0, lay, levels), depth)
-        with np.errstate(invalid="ignore"):
-            err = point_errors(pos, clip.positions)
-        misses = valid & ~(err <= bound * VERIFY)
-        del err
-        # what to tighten this round, each (samples, levels cap, step, groups allowed): the points over their
-        # bound, or once every bound holds the added acceleration energy; and the planted feet's added speed
-        # in the same round (it is mostly the joints above the feet: tightening them with the rest halves the
-        # rounds)
-        todo: list[tuple[np.ndarray, np.ndarray, int, np.ndarray | None]] = []
-        if misses.any():
-            todo.append((misses, cap, 1, None))
-        elif smooth:
-            jit, shaky = clip.jitter(pos)
-            if shaky.any():
-                todo.append((shaky, cap + JITTER_LEVELS, 2, None))
-        skate, sliding = clip.skate(pos, base)
-        if skate > clip.skate_limit() and sliding.any():  # the joints above the feet, or every joint above them
-            allowed = feet if skate < STALLED * slid else None  # if that did not help
-            todo.append((sliding, cap + JITTER_LEVELS, 1, allowed))
-            slid = skate
-        moved = False
-        for samples, limit, step, only in todo:
-            samples = _widen(samples)
-            moved |= bounds.tighten(levels, limit, lay, samples, step, only) or (
-                only is not None and bounds.tighten(levels, limit, lay, samples, step))  # then every joint above
-        if not moved:
-            settled = True
-            break
-        # this round's coding is done with: the next one is made without it beside (peak memory)
-        last = None
-        del q, y, pos, misses, todo, samples
-    return _settle(clip, x, base, t0, levels, cap, bound, depth, last), jit, settled
-
-
-def _widen(samples: np.ndarray) -> np.ndarray:
-    """``(frames, points)`` samples to tighten, spread over :data:`WIDEN` frames on each side: a few frames
-    tightened around each miss make fewer level changes, and smoother ones."""
-    out = samples.copy()
-    for k in range(1, WIDEN + 1):
-        out[k:] |= samples[:-k]
-        out[:-k] |= samples[k:]
-    return out
-
-
-def _settle(clip: Clip, x: np.ndarray, base: np.ndarray, t0: np.ndarray, levels: np.ndarray, cap: np.ndarray,
-            bound: np.ndarray, depth: int, last: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
-            ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The last word on the bound: the rounds of :func:`fit` may end (jitter tightening undoing a bound met one
-    round before) with a few points over their bound; the groups acting on them go straight to their safe
-    level, where the worst-case sum holds, until none is over (at worst every group at its safe level).
-    Returns the integers, the decoded residual and the corrected positions; ``levels`` is raised in place.
-    ``last``: the coding of ``levels`` as they are, when the caller has it."""
-    lay = clip.layout
-    for round_ in range(MAX_ROUNDS):
-        q, y, pos = last if last is not None else clip.quantise(x, base, bounds.tolerances(t0, lay, levels), depth)
-        last = None
-        with np.errstate(invalid="ignore"):
-            misses = clip.valid & ~(point_errors(pos, clip.positions) <= bound * VERIFY)
-        if not misses.any():
-            break
-        up = bounds.groups_moving(lay, misses) & (levels < cap)
-        if not up.any():
-            up = levels < cap  # nothing left to raise where it misses: every group to its safe level
-            if not up.any():
-                break
-        levels[up] = cap[up]
-        if round_ + 1 < MAX_ROUNDS:  # this coding is not kept beside the next one (peak memory)
-            del q, y, pos
-    return q, y, pos
