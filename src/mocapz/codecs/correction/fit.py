@@ -32,6 +32,7 @@ FOOT_REACH = 0.2  # the joints above a foot tightened for its skate reach the fi
 FOOT_START = 2  # levels those joints start tighter than the others on planted frames
 SHRINK = 0.85  # tolerance factor per lifting level (lifting.level_factor): smooth corrections, little jitter
 JITTER_UP_TO_CM = 2.0  # targets up to this bound keep the added jitter under JITTER
+GAVE_UP = 1 << 62  # the bytes of a correction given up (:func:`fit`'s ``give_up``): never the smaller
 HANDOVER_LEVELS = 2  # a skeleton stream block's last frame, which the next block continues from: this much tighter
 # (half the tolerance; Clip.handover)
 
@@ -260,11 +261,15 @@ class Clip:
         return float(per_col.max(initial=0.0))
 
 
-def fit(clip: Clip, base: np.ndarray, e: float, relax_by: float = bounds.RELAX, depth: int | None = None) -> Correction:
+def fit(clip: Clip, base: np.ndarray, e: float, relax_by: float = bounds.RELAX, depth: int | None = None,
+        give_up: float = math.inf) -> Correction:
     """Code the residual of decoded base values ``(frames, columns)`` so that every point is within ``e``
     (file units), planted feet still and the added jitter small, verified on the corrected positions.
     ``relax_by``: the base tolerances' multiple of the worst-case-safe ones (the verification tightens
-    where that is too much); ``depth``: lifting levels (default: the clip's, :func:`lifting_levels`)."""
+    where that is too much); ``depth``: lifting levels (default: the clip's, :func:`lifting_levels`).
+    ``give_up``: bytes the correction cannot be smaller than and be worth having (another base's file is): where
+    its first round already reaches them (:func:`.rounds.rounds`), a correction of :data:`GAVE_UP` bytes that
+    meets nothing comes back, no sections."""
     depth = clip.levels if depth is None else depth
     lay = clip.layout
     x = clip.residual(base)
@@ -282,9 +287,12 @@ def fit(clip: Clip, base: np.ndarray, e: float, relax_by: float = bounds.RELAX, 
     del tighter
     if clip.handover(base):
         levels[-1] = np.minimum(levels[-1] + HANDOVER_LEVELS, cap[-1] + JITTER_LEVELS)
-    (q, y, pos), jit, settled = rounds(clip, x, base, t0, levels, cap, bound, depth, feet, e <= clip.smooth_up_to())
+    done = rounds(clip, x, base, t0, levels, cap, bound, depth, feet, e <= clip.smooth_up_to(), give_up)
     if clip.chain is not None:
         clip.chain.forget()  # what the rounds shared
+    if done is None:
+        return Correction({}, GAVE_UP, Errors(math.inf, math.inf, math.inf), e, depth=depth)
+    (q, y, pos), jit, settled = done
     frames = x.shape[0]
     del x, y, cap  # what is left to do needs the positions' figures and the integers only
     errors, added = clip.metric.of_positions(pos), clip.added_energy(pos)

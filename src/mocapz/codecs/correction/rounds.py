@@ -13,6 +13,7 @@ from typing import Any
 import numpy as np
 
 from mocapz.codecs.correction import bounds
+from mocapz.format.entropy import encode_int_matrix
 from mocapz.metrics.figures import point_errors
 
 WIDEN = 2  # frames tightened on each side of a miss
@@ -27,19 +28,26 @@ Coding = tuple[np.ndarray, np.ndarray, np.ndarray]  # integers, decoded residual
 
 
 def rounds(clip: Clip, x: np.ndarray, base: np.ndarray, t0: np.ndarray, levels: np.ndarray, cap: np.ndarray,
-            bound: np.ndarray, depth: int, feet: np.ndarray, smooth: bool) -> tuple[Coding, float, bool]:
+           bound: np.ndarray, depth: int, feet: np.ndarray, smooth: bool, give_up: float = math.inf
+           ) -> tuple[Coding, float, bool] | None:
     """The verification rounds of :func:`fit` (``levels`` ``(frames, groups)`` raised in place, at most to
     ``cap``, or beyond for the jitter and the feet), then :func:`settle`: the coding, the added jitter and
     whether the rounds settled (False: :data:`MAX_ROUNDS` ran out, e.g. a planted foot's speed swinging around
     its limit while the jitter tightens every joint). What
-    a round makes is let go before the next round codes (and all of it on return: peak memory)."""
+    a round makes is let go before the next round codes (and all of it on return: peak memory).
+
+    None where the first round's integers alone, entropy coded, reach ``give_up`` bytes (the rounds only raise
+    levels, finer steps, larger integers: the correction's sections would come to more, and the file on this base
+    could not be the smaller one)."""
     lay, valid = clip.layout, clip.valid
     jit = 0.0
     last = None  # the coding of the current levels
     slid = math.inf  # the feet's added speed the round before
     settled = False
-    for _ in range(MAX_ROUNDS):
+    for round_ in range(MAX_ROUNDS):
         q, y, pos = last = clip.quantise(x, base, bounds.tolerances(t0, lay, levels), depth)
+        if not round_ and math.isfinite(give_up) and len(encode_int_matrix(q)) >= give_up:
+            return None
         with np.errstate(invalid="ignore"):
             err = point_errors(pos, clip.positions)
         misses = valid & ~(err <= bound * VERIFY)

@@ -162,22 +162,24 @@ def _whole_bases(clip: Clip, bases: list[Base], target: Target, depth: int | Non
     whose own bytes alone reach a met coding's whole bytes is not tried (it cannot be the smaller)."""
     found: dict[int, Correction] = {}
     for i in _order(bases):
-        if not bases[i].within(min((bases[j].extra + c.size for j, c in found.items() if target.met(c.errors)),
-                                   default=math.inf)):
+        smallest = min((bases[j].extra + c.size for j, c in found.items() if target.met(c.errors)), default=math.inf)
+        if not bases[i].within(smallest):
             continue
         found[i] = _search_whole(clip, _values(bases[i]), target,
-                                 depth if not found else next(iter(found.values())).depth)
+                                 depth if not found else next(iter(found.values())).depth, smallest - bases[i].extra)
     return min(sorted(found.items()), key=lambda f: bases[f[0]].extra + f[1].size)  # the first of equals
 
 
-def _search_whole(clip: Clip, base: np.ndarray, target: Target, depth: int | None) -> Correction:
+def _search_whole(clip: Clip, base: np.ndarray, target: Target, depth: int | None,
+                  give_up: float = math.inf) -> Correction:
     """Every setting coded on the whole clip; the smallest met (the first of equals), else the first (the
-    others are not kept while the next is coded: peak memory)."""
+    others are not kept while the next is coded: peak memory). ``give_up``: bytes a correction is not worth
+    having at (:func:`bound_search`)."""
     settings = _settings(clip, depth)
-    first = bound_search(clip, base, target, *settings[0])
+    first = bound_search(clip, base, target, *settings[0], give_up=give_up)
     best = first if target.met(first.errors) else None
     for r, dp in settings[1:]:
-        cor = bound_search(clip, base, target, r, dp, start=first.bound)
+        cor = bound_search(clip, base, target, r, dp, start=first.bound, give_up=give_up)
         if target.met(cor.errors) and (best is None or cor.size < best.size):
             best = cor
         del cor
@@ -210,14 +212,16 @@ def _windows(clip: Clip) -> list[tuple[Clip, slice]]:
 
 
 def bound_search(clip: Clip, base: np.ndarray, target: Target, relax_by: float, depth: int,
-                 start: float | None = None) -> Correction:
+                 start: float | None = None, give_up: float = math.inf) -> Correction:
     """The correction with the largest bound meeting ``target`` (the bound is at most ``max_error``; for a
     distortion or ARMS target, secant steps in log space inside the bracket of met and missed bounds, at most
-    :data:`SEARCH_FITS` fits, from ``start`` when given: a bound found with other settings)."""
+    :data:`SEARCH_FITS` fits, from ``start`` when given: a bound found with other settings). ``give_up``: with a
+    max error target alone, bytes the correction is not worth having at (another base's file is no larger):
+    :func:`.fit.fit` stops after its first round where that round's integers reach them."""
     e_cap = target.max_error
     if target.max_distortion is None and target.max_arms is None:
         assert e_cap is not None
-        return fit(clip, base, e_cap, relax_by, depth)
+        return fit(clip, base, e_cap, relax_by, depth, give_up=give_up)
     guesses = []
     if target.max_arms is not None:
         guesses.append(2.0 * target.max_arms)
