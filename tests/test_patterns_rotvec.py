@@ -25,7 +25,7 @@ def _loop(rv: np.ndarray) -> np.ndarray:
     return out
 
 
-@pytest.mark.parametrize("order", ["ZYX", "XYZ", "zxy", "YZX", "XZY", "YXZ"])
+@pytest.mark.parametrize("order", ["ZYX", "XYZ", "zxy", "YZX", "XZY", "YXZ", "ZXZ", "yzy"])
 def test_euler_rotvec_is_scipys(order: str) -> None:
     rng = np.random.default_rng(3)
     angles = rng.uniform(-4.0, 4.0, (5000, 3))
