@@ -1,7 +1,7 @@
 """The verification rounds of the correction's fit (:func:`.fit.fit`): the residual coded at the current tolerance
 levels, the decoded positions checked against every point's bound, the planted feet's added speed and the added
 jitter, and the levels raised where something is over, until nothing is (:func:`rounds`); then the last word on the
-bounds (:func:`settle`). ``levels`` are ``(frames, groups)`` tightening steps (each halves a tolerance's square:
+bounds (:func:`_settle`). ``levels`` are ``(frames, groups)`` tightening steps (each halves a tolerance's square:
 :func:`.bounds.tolerances`).
 """
 
@@ -30,8 +30,8 @@ Coding = tuple[np.ndarray, np.ndarray, np.ndarray]  # integers, decoded residual
 def rounds(clip: Clip, x: np.ndarray, base: np.ndarray, t0: np.ndarray, levels: np.ndarray, cap: np.ndarray,
            bound: np.ndarray, depth: int, feet: np.ndarray, smooth: bool, give_up: float = math.inf
            ) -> tuple[Coding, float, bool] | None:
-    """The verification rounds of :func:`fit` (``levels`` ``(frames, groups)`` raised in place, at most to
-    ``cap``, or beyond for the jitter and the feet), then :func:`settle`: the coding, the added jitter and
+    """The verification rounds of :func:`.fit.fit` (``levels`` ``(frames, groups)`` raised in place, at most to
+    ``cap``, or beyond for the jitter and the feet), then :func:`_settle`: the coding, the added jitter and
     whether the rounds settled (False: :data:`MAX_ROUNDS` ran out, e.g. a planted foot's speed swinging around
     its limit while the jitter tightens every joint). What
     a round makes is let go before the next round codes (and all of it on return: peak memory).
@@ -70,7 +70,7 @@ def rounds(clip: Clip, x: np.ndarray, base: np.ndarray, t0: np.ndarray, levels: 
             slid = skate
         moved = False
         for samples, limit, step, only in todo:
-            samples = widen(samples)
+            samples = _widen(samples)
             moved |= bounds.tighten(levels, limit, lay, samples, step, only) or (
                 only is not None and bounds.tighten(levels, limit, lay, samples, step))  # then every joint above
         if not moved:
@@ -79,10 +79,10 @@ def rounds(clip: Clip, x: np.ndarray, base: np.ndarray, t0: np.ndarray, levels: 
         # this round's coding is done with: the next one is made without it beside (peak memory)
         last = None
         del q, y, pos, misses, todo, samples
-    return settle(clip, x, base, t0, levels, cap, bound, depth, last), jit, settled
+    return _settle(clip, x, base, t0, levels, cap, bound, depth, last), jit, settled
 
 
-def widen(samples: np.ndarray) -> np.ndarray:
+def _widen(samples: np.ndarray) -> np.ndarray:
     """``(frames, points)`` samples to tighten, spread over :data:`WIDEN` frames on each side: a few frames
     tightened around each miss make fewer level changes, and smoother ones."""
     out = samples.copy()
@@ -92,10 +92,10 @@ def widen(samples: np.ndarray) -> np.ndarray:
     return out
 
 
-def settle(clip: Clip, x: np.ndarray, base: np.ndarray, t0: np.ndarray, levels: np.ndarray, cap: np.ndarray,
+def _settle(clip: Clip, x: np.ndarray, base: np.ndarray, t0: np.ndarray, levels: np.ndarray, cap: np.ndarray,
             bound: np.ndarray, depth: int, last: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
             ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The last word on the bound: the rounds of :func:`fit` may end (jitter tightening undoing a bound met one
+    """The last word on the bound: the rounds of :func:`.fit.fit` may end (jitter tightening undoing a bound met one
     round before) with a few points over their bound; the groups acting on them go straight to their safe
     level, where the worst-case sum holds, until none is over (at worst every group at its safe level).
     Returns the integers, the decoded residual and the corrected positions; ``levels`` is raised in place.
