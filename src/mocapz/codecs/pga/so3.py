@@ -93,34 +93,23 @@ def karcher_mean(r: np.ndarray, iterations: int = 50, tol: float = 1e-12) -> np.
         if not active.size:
             break
         m = mu[active]
-        t = _mean_log(np.swapaxes(m, -1, -2)[None], samples, None if active.size == mu.shape[0] else active)
+        t = log_between(m, samples, None if active.size == mu.shape[0] else active).mean(axis=0)
         mu[active] = m @ exp(t)
         active = active[~(np.linalg.norm(t, axis=-1) < tol)]
     return mu.reshape(*lead, 3, 3)
 
 
-def log_between(mean: np.ndarray, rotations: np.ndarray) -> np.ndarray:
-    """``log(mean^T @ rotations)`` ``(samples, ..., 3)`` of rotations ``(samples, ..., 3, 3)`` about ``mean``
-    ``(..., 3, 3)``, :data:`MEAN_ROWS` samples at a time (their temporaries stay small; the same numbers)."""
+def log_between(mean: np.ndarray, rotations: np.ndarray, columns: np.ndarray | None = None) -> np.ndarray:
+    """``log(mean^T @ rotations[:, columns])`` ``(samples, ..., 3)`` of rotations ``(samples, ..., 3, 3)`` about
+    ``mean`` ``(..., 3, 3)`` (``columns``: those of the second axis, default all), :data:`MEAN_ROWS` samples at a
+    time: the temporaries of a few hundred samples, not of a clip (the same numbers)."""
     mt = np.swapaxes(mean, -1, -2)[None]
-    out = np.empty(rotations.shape[:-1])
-    for a in range(0, rotations.shape[0], MEAN_ROWS):
-        out[a:a + MEAN_ROWS] = log(mt @ rotations[a:a + MEAN_ROWS])
-    return out
-
-
-def _mean_log(mt: np.ndarray, samples: np.ndarray, active: np.ndarray | None) -> np.ndarray:
-    """``log(mt @ samples[:, active]).mean(axis=0)`` ``(means, 3)``, :data:`MEAN_ROWS` samples at a time (their
-    temporaries stay small): the sum runs down the samples in order, as NumPy's mean over axis 0 does (the same
-    bits)."""
-    n = samples.shape[0]
-    total = None
+    n = rotations.shape[0]
+    out = np.empty((n, *mt.shape[1:-1]))
     for a in range(0, n, MEAN_ROWS):
-        part = samples[a:a + MEAN_ROWS] if active is None else samples[a:a + MEAN_ROWS, active]
-        logs = log(mt @ part)
-        total = logs.sum(axis=0) if total is None else np.add.reduce(np.concatenate([total[None], logs]), axis=0)
-    assert total is not None
-    return total / n
+        part = rotations[a:a + MEAN_ROWS] if columns is None else rotations[a:a + MEAN_ROWS, columns]
+        out[a:a + MEAN_ROWS] = log(mt @ part)
+    return out
 
 
 def _chordal_mean(r: np.ndarray) -> np.ndarray:
