@@ -234,7 +234,8 @@ def render(res: dict[str, Any], sm: dict[str, Any], run: dict[str, Any]) -> str:
          "compared byte for byte with the zero-base coding (first table); the file adds `c.head` and the header "
          "with the skeleton.", "",
          "A's values are used as in its file (as if decoded exactly). Frames are matched on features: per joint "
-         "the local rotation matrix times the joint's lever (the longest rest-pose distance to a point below it), "
+         "the local rotation matrix times the joint's lever (the pattern codec's: the longest rest-pose distance "
+         "to a point below it, floored), "
          "the root's heading taken out, plus the root height. Alignments: `win60` / `win120` (per window of 60 "
          "or 120 frames of B, 0.5 or 1 s, the nearest window of A at time scale 0.8-1.25), `dtw` (subsequence "
          "DTW, A stepping 0, 1 or 2 frames per frame of B), `oracle` (each frame of B its nearest frame of A). "

@@ -5,8 +5,9 @@ Every array here is in the clip's file units: root positions in the BVH's length
 120 fps, the first frame the added T-pose). A's values are used as they are in its file, as if decoded exactly.
 
 - Features for matching (:class:`ClipData`): per joint its 3x3 local rotation matrix times the joint's lever
-  (:func:`levers`), the root's heading (yaw about the vertical Y axis) taken out, plus the root height. The
-  squared distance of two frames is then about 2 * sum (lever * angle)^2, a position-like error.
+  (the pattern codec's, :func:`mocapz.codecs.patterns.skeletal.levers`), the root's heading (yaw about the
+  vertical Y axis) taken out, plus the root height. The squared distance of two frames is then about
+  2 * sum (lever * angle)^2, a position-like error.
 - Alignment (:func:`align`), a frame of A for every frame of B: ``win60`` / ``win120`` (per window of B of 60
   or 120 frames the offset into A and the time scale of :data:`SPEEDS` nearest on the features), ``dtw``
   (subsequence dynamic time warping, A stepping 0, 1 or 2 frames per frame of B) or ``oracle`` (each frame
@@ -37,9 +38,10 @@ from scipy.ndimage import gaussian_filter1d
 import mocapz
 from mocapz.codecs.correction.fit import Clip
 from mocapz.codecs.correction.search import Base, search_bases
+from mocapz.codecs.patterns.skeletal import levers
 from mocapz.codecs.target import Target
 from mocapz.format.container import Container
-from mocapz.model.kinematics import axis_rotations, euler_angles, forward_positions, local_rotations
+from mocapz.model.kinematics import axis_rotations, euler_angles, local_rotations
 from mocapz.model.motion import Motion
 from mocapz.model.skeleton import Skeleton
 
@@ -62,18 +64,6 @@ PARTS: dict[str, tuple[str, ...]] = {
     "armR": ("RightShoulder", "RightArm", "RightForeArm", "RightHand", "RightFingerBase", "RightHandIndex1",
              "RThumb"),
 }
-
-
-def levers(sk: Skeleton) -> np.ndarray:
-    """``(joints,)``: per joint the longest rest-pose distance to a point below it, file units, at least 1."""
-    pos = forward_positions(sk, np.zeros((1, sk.n_channels)))[0]
-    below = sk.below()
-    out = np.ones(sk.n_joints)
-    for j in range(sk.n_joints):
-        pts = np.flatnonzero(below[j])
-        if pts.size:
-            out[j] = max(1.0, float(np.linalg.norm(pos[pts] - pos[j], axis=1).max()))
-    return out
 
 
 class ClipData:
