@@ -311,6 +311,34 @@ def test_pack_uint64() -> None:
     assert packed[:2] == b"\x03\x01"  # count, then bytes per value
 
 
+def test_large_streams_keep_no_compressor(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A stream of megabytes is packed by a zstd context of megabytes that is not kept for the rest of the
+    process (resident memory), small ones are kept; a kept context packs the bytes a new one packs."""
+    import threading
+
+    from mocapz.format import planes
+
+    rng = np.random.default_rng(3)
+    small = rng.integers(0, 50, 2_000).astype(np.uint64)
+    large = rng.integers(0, 50, 400_000).astype(np.uint64)  # 3.2 MB: level 19's tables of 2**21 entries
+    out: dict[int, tuple[list[bytes], dict]] = {}
+
+    def run(keep: int) -> None:  # a thread of its own: its compressors start empty
+        monkeypatch.setattr(planes, "KEEP_LOG", keep)
+        out[keep] = [pack_uint64(v) for v in (small, large, small, large)], dict(planes._LOCAL.zstd)
+
+    default = planes.KEEP_LOG
+    for keep in (default, 30):
+        t = threading.Thread(target=run, args=(keep,))
+        t.start()
+        t.join()
+    packed, kept = out[default]
+    assert kept and all(max(key[:3]) <= default for key in kept)
+    every_packed, every_kept = out[30]
+    assert any(max(key[:3]) > default for key in every_kept)  # the large one kept and used twice
+    assert packed == every_packed and packed[0] == packed[2] and packed[1] == packed[3]
+
+
 MATRICES = {
     "empty-rows": np.zeros((0, 4), dtype=np.int64),
     "empty-cols": np.zeros((5, 0), dtype=np.int64),

@@ -26,12 +26,18 @@ LEVEL = 19  # zstd's level of every byte-plane stream but where a caller asks an
 # encode of 06_13 about a fifth faster (target_length 999 packed 0.1-0.2 % smaller, a little slower)
 STRATEGY = zstandard.STRATEGY_BTOPT
 MIN_MATCH = 4
+# the largest table (log2 of its entries, and of the window's bytes) of a compressor kept for the next stream: a
+# context is about 4 bytes per entry of its hash and chain tables plus its window, so one kept for every stream
+# size a clip has (06_13's patterns at max distortion 1 %: 13 sets, up to window 2**20, tables 2**21) held 32 MB
+# of resident memory from the first large stream to the end of the process; 2**17 keeps each under about 1.2 MB
+KEEP_LOG = 17
 
 
 def _compressor(level: int, size: int) -> zstandard.ZstdCompressor:
     """This thread's zstd compressor for ``size`` bytes at ``level`` (:data:`LEVEL`: with :data:`STRATEGY` and
-    :data:`MIN_MATCH`), made once per parameter set: the same bytes as a new one per call (each ``compress`` is a
-    frame of its own), without making its context again for each of a clip's many small streams."""
+    :data:`MIN_MATCH`), made once per parameter set where its tables are small (:data:`KEEP_LOG`): the same bytes
+    as a new one per call (each ``compress`` is a frame of its own), without making its context again for each of
+    a clip's many small streams; a large stream's context (megabytes of tables, a few calls a clip) is not kept."""
     made = getattr(_LOCAL, "zstd", None)
     if made is None:
         made = _LOCAL.zstd = {}
@@ -44,9 +50,11 @@ def _compressor(level: int, size: int) -> zstandard.ZstdCompressor:
     key = (p.window_log, p.chain_log, p.hash_log, p.search_log, p.target_length)
     z = made.get(key)
     if z is None:
-        z = made[key] = zstandard.ZstdCompressor(compression_params=zstandard.ZstdCompressionParameters(
+        z = zstandard.ZstdCompressor(compression_params=zstandard.ZstdCompressionParameters(
             window_log=p.window_log, chain_log=p.chain_log, hash_log=p.hash_log, search_log=p.search_log,
             min_match=MIN_MATCH, target_length=p.target_length, strategy=STRATEGY))
+        if max(p.window_log, p.chain_log, p.hash_log) <= KEEP_LOG:
+            made[key] = z
     return z
 
 
