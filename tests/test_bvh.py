@@ -381,6 +381,19 @@ def test_short_row(tmp_path: Path) -> None:
     _raises(_tiny(tmp_path, {18: "1.0 2.0 3.0"}), "frame 1 has 3 values", line=FIRST_ROW_LINE)
 
 
+def test_every_row_one_value_too_many(tmp_path: Path) -> None:
+    """Rows of one length that numpy's parser reads whole, but not the hierarchy's: the first row is named."""
+    _raises(_tiny(tmp_path, {18: TINY_LINES[18] + " 1.0", 19: TINY_LINES[19] + " 2.0"}), "frame 1 has 10 values",
+            line=FIRST_ROW_LINE)
+
+
+def test_numbers_only_python_reads(tmp_path: Path) -> None:
+    """``1_000`` (Python's float reads it, numpy's text parser does not): the values of Python's reading."""
+    m = read_bvh(_tiny(tmp_path, {18: TINY_LINES[18].replace("90.0", "1_000.5")}, name="ok.bvh"))
+    assert m.channels[0, 6] == 1000.5 and m.channels.shape == (2, 9)
+    assert np.array_equal(m.channels[1], [float(t) for t in TINY_LINES[19].split()])
+
+
 def test_nan_in_a_row(tmp_path: Path) -> None:
     _raises(_tiny(tmp_path, {19: TINY_LINES[19].replace("10.0", "nan")}), "NaN", line=FIRST_ROW_LINE + 1)
 
@@ -423,3 +436,42 @@ def test_unit_guess_ignores_a_locomotion_root_far_from_the_body() -> None:
     near = read_bvh(data_path("other/bvh/bandai_namco/dataset-1_walk_normal_001.bvh")).skeleton
     assert far.unit_cm == near.unit_cm == 1.0
     assert "184" in far.unit_note
+
+
+def _decimals_whole(values: np.ndarray, max_decimals: int = 9) -> np.ndarray | None:
+    """common_decimals on the whole matrix at once (its code before it went a few thousand rows at a time)."""
+    from mocapz.io.common import exception_budget, fits_decimals
+
+    rows, cols = values.shape
+    budget, slack = exception_budget(rows), rows // 100
+    finite = np.isfinite(values)
+    fit = np.stack([fits_decimals(values, np.full(cols, d)) for d in range(max_decimals + 1)])
+    never = finite & ~fit.any(axis=0)
+    if (never.sum(axis=0) > budget).any():
+        return None
+    ok = ((finite & ~never)[None] & ~fit).sum(axis=1) <= slack
+    if not ok.any(axis=0).all():
+        return None
+    return np.argmax(ok, axis=0).astype(np.int64)
+
+
+def test_common_decimals_of_a_long_clip_in_steps() -> None:
+    """A clip of several :data:`~mocapz.io.common.DECIMAL_ROWS` steps: the decimals (and the None) of the whole
+    matrix at once, with off-decimal values spread over the steps up to each budget and past it."""
+    from mocapz.io import common
+
+    base = read_bvh(data_path("cmu/bvh/06_13.bvh")).channels
+    values = np.concatenate([base, base[::-1], base])[: 3 * common.DECIMAL_ROWS + 7]
+    rows = values.shape[0]
+    rng = np.random.default_rng(4)
+    budget, slack = common.exception_budget(rows), rows // 100
+    cases = [values]
+    for col, extra in ((3, slack), (5, slack + 1), (7, budget), (8, budget + 1)):
+        v = values.copy()
+        at = rng.choice(rows, extra, replace=False)
+        v[at, col] += 1e-5 if extra <= slack + 1 else np.pi * 1e-7  # a decimal more, or off every count
+        cases.append(v)
+    for v in cases:
+        got, want = common.common_decimals(v), _decimals_whole(v)
+        assert (got is None) == (want is None) and (got is None or np.array_equal(got, want))
+    assert common.common_decimals(cases[0]) is not None and common.common_decimals(cases[-1]) is None

@@ -68,8 +68,7 @@ class _Tokens:
 def read_bvh(path: str | os.PathLike[str]) -> Motion:
     """Read a BVH file into a :class:`Motion` (values in file units and degrees)."""
     path = Path(path)
-    text = read_text(path)
-    lines = text.splitlines()
+    lines = read_text(path).splitlines()  # the text itself not kept beside its lines (a long clip's peak memory)
     motion_line = next((i for i, ln in enumerate(lines) if ln.strip().upper() == "MOTION"), None)
     if not lines or lines[0].strip().upper() != "HIERARCHY":
         raise FormatError(path, "not a BVH file (first line is not HIERARCHY)", 1)
@@ -212,19 +211,22 @@ def _parse_motion(lines: list[str], motion_line: int, n_channels: int, path: Pat
         )
     if len(body) > frames:
         raise FormatError(path, f"header says {frames} frames but {len(body)} rows follow", first_data_line)
-    counts = np.fromiter((len(ln.split()) for ln in body), dtype=np.int64, count=len(body))
-    bad = np.flatnonzero(counts != n_channels)
-    if bad.size:
-        row = int(bad[0])
-        raise FormatError(
-            path,
-            f"frame {row + 1} has {counts[row]} values, the hierarchy declares {n_channels} channels",
-            _line_of_row(lines, i, row),
-        )
     try:  # numpy's C parser: no Python string per value (a few times less memory at its peak, faster)
-        data = np.loadtxt(body, dtype=np.float64, comments=None, ndmin=2).reshape(frames, n_channels) if frames \
-            else np.zeros((0, n_channels))
-    except ValueError:
+        data = np.loadtxt(body, dtype=np.float64, comments=None, ndmin=2) if frames else np.zeros((0, n_channels))
+    except ValueError:  # a row of another length, or a number numpy's parser does not read (below)
+        data = None
+    if data is None or data.shape != (frames, n_channels):  # which row (values counted only here)
+        counts = np.fromiter((len(ln.split()) for ln in body), dtype=np.int64, count=len(body))
+        bad = np.flatnonzero(counts != n_channels)
+        if bad.size:
+            row = int(bad[0])
+            raise FormatError(
+                path,
+                f"frame {row + 1} has {counts[row]} values, the hierarchy declares {n_channels} channels",
+                _line_of_row(lines, i, row),
+            )
+        data = None  # every row of the right length: Python's reading below
+    if data is None:
         for row, ln in enumerate(body):
             try:
                 [float(t) for t in ln.split()]

@@ -15,6 +15,9 @@ from mocapz.model.skeleton import Skeleton
 CMU_UNIT_CM = 2.54 / 0.45  # CMU ASF "length 0.45": 1 unit = 1/0.45 inch = 5.644 cm
 
 
+DECIMAL_ROWS = 4096  # rows per step of :func:`common_decimals` (its work arrays: 10 bools and a few floats a value)
+
+
 def exception_budget(rows: int) -> int:
     """How many values of a column of ``rows`` values may miss its common decimals (1 %, at least 1): those
     are kept exactly as per-value exceptions."""
@@ -55,13 +58,18 @@ def common_decimals(values: np.ndarray, max_decimals: int = 9, exceptions: bool 
     rows, cols = values.shape
     budget = exception_budget(rows) if exceptions else 0
     slack = rows // 100 if exceptions else 0  # values with a few more decimals than the rest: exceptions too
-    finite = np.isfinite(values)
-    fit = np.stack([fits_decimals(values, np.full(cols, d)) for d in range(max_decimals + 1)])
-    never = finite & ~fit.any(axis=0)
-    if (never.sum(axis=0) > budget).any():
+    never = np.zeros(cols, dtype=np.int64)  # per column: finite values off every count
+    misses = np.zeros((max_decimals + 1, cols), dtype=np.int64)  # per count and column: fittable values off it
+    for a in range(0, rows, DECIMAL_ROWS):  # a few thousand rows at a time: counts add up, the arrays stay small
+        part = values[a:a + DECIMAL_ROWS]
+        finite = np.isfinite(part)
+        fit = np.stack([fits_decimals(part, np.full(cols, d)) for d in range(max_decimals + 1)])
+        off = finite & ~fit.any(axis=0)
+        never += off.sum(axis=0)
+        misses += ((finite & ~off)[None] & ~fit).sum(axis=1)
+    if (never > budget).any():
         return None
-    misses = (finite & ~never)[None] & ~fit  # (decimals, rows, cols): fittable values off each count
-    ok = misses.sum(axis=1) <= slack  # (decimals, cols)
+    ok = misses <= slack  # (decimals, cols)
     if not ok.any(axis=0).all():
         return None
     return np.argmax(ok, axis=0).astype(np.int64)
