@@ -118,6 +118,53 @@ def test_chunked_figures_are_the_whole_clip_figures(walk: Motion, markers: Marke
             assert np.array_equal(context.squared_accelerations(p), before)
 
 
+def _jitter_before(a: np.ndarray, b: np.ndarray, valid: np.ndarray) -> float | None:
+    def energy(p: np.ndarray, ok: np.ndarray) -> float:
+        acc = p[2:] - 2.0 * p[1:-1] + p[:-2]
+        return float(np.where(ok, np.sum(acc * acc, axis=-1), 0.0).sum())
+
+    ok = valid[2:] & valid[1:-1] & valid[:-2]
+    ea, eb = energy(np.where(valid[..., None], a, 0.0), ok), energy(np.where(valid[..., None], b, 0.0), ok)
+    return (0.0 if eb == 0.0 else float("inf")) if ea == 0.0 else 100.0 * (eb / ea - 1.0)
+
+
+def _bone_before(a: np.ndarray, b: np.ndarray, valid: np.ndarray, pairs: np.ndarray) -> float:
+    la = np.linalg.norm(a[:, pairs[:, 0]] - a[:, pairs[:, 1]], axis=-1)
+    lb = np.linalg.norm(b[:, pairs[:, 0]] - b[:, pairs[:, 1]], axis=-1)
+    ok = valid[:, pairs[:, 0]] & valid[:, pairs[:, 1]] & (la > 1e-9)
+    return float(np.max(np.abs(lb - la)[ok] / la[ok])) if ok.any() else 0.0
+
+
+def _up_before(a: np.ndarray, valid: np.ndarray) -> int:
+    big = np.where(valid[..., None], a, np.nan)
+    with np.errstate(invalid="ignore"):
+        ext = np.nanmax(big, axis=1) - np.nanmin(big, axis=1)
+    return int(np.argmax(np.nanmedian(ext, axis=0)))
+
+
+def test_chunked_jitter_bones_and_up_axis_are_the_whole_clip_ones(walk: Motion, markers: MarkerMotion) -> None:
+    """The verification's jitter, bone length error and vertical axis (and so its contacts), a chunk of frames at
+    a time: the numbers of the whole clip's arrays, on a skeleton (bone lengths moved by a stretched leg) and on
+    markers with gaps (their bones: none; their up axis from every present sample)."""
+    from mocapz.metrics import contacts, skate
+
+    for motion in (walk.slice(0, 2600), markers):
+        a, b, valid = _decoded(motion)
+        valid = np.ones(a.shape[:2], dtype=bool) if valid is None else valid
+        assert a.shape[0] > figures.CHUNK_FRAMES
+        if isinstance(motion, Motion):  # one bone longer in some frames: a bone length error the chunks must find
+            b = b.copy()
+            b[1500:1510, 3] += 2.0
+        got, want = skate.jitter_pct(a, b, valid), _jitter_before(a, b, valid)
+        assert got == want and got is not None and got != 0
+        pairs = figures.bone_pairs(motion)
+        assert figures.bone_len_err(a, b, valid, pairs) == _bone_before(a, b, valid, pairs)
+        assert figures.bone_len_err(a, b, valid, pairs) > (0.01 if len(pairs) else -1)
+        body = motion.skeleton.body_points() if isinstance(motion, Motion) else np.arange(a.shape[1])
+        assert contacts.up_axis(a, valid, body) == _up_before(a[:, body], valid[:, body])
+        assert contacts.up_axis(a, valid) == _up_before(a, valid)
+
+
 @pytest.fixture(scope="module")
 def integers(walk: Motion) -> np.ndarray:
     """The integers of a real correction (the closed loop on a zero base at 1 cm, the whole clip)."""

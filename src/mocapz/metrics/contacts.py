@@ -20,6 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from mocapz.metrics.chunks import frame_chunks
 from mocapz.model.motion import AnyMotion, Motion
 
 CONTACT_HEIGHT_CM = 5.0
@@ -46,12 +47,16 @@ def floor_heights(h: np.ndarray, back: int) -> np.ndarray:
     return out
 
 
-def up_axis(a: np.ndarray, valid: np.ndarray) -> int:
-    """Vertical axis of ``(frames, points, 3)`` positions: the one with the largest median per-frame
-    extent of the body (height > width)."""
-    big = np.where(valid[..., None], a, np.nan)
-    with np.errstate(invalid="ignore"):
-        ext = np.nanmax(big, axis=1) - np.nanmin(big, axis=1)
+def up_axis(a: np.ndarray, valid: np.ndarray, points: np.ndarray | None = None) -> int:
+    """Vertical axis of ``(frames, points, 3)`` positions (of their ``points`` only, if given): the one with the
+    largest median per-frame extent of the body (height > width). The extents are taken a chunk of frames at a
+    time (:data:`~mocapz.metrics.chunks.CHUNK_FRAMES`), each frame's as from the whole array."""
+    sel = slice(None) if points is None else points
+    ext = np.empty((a.shape[0], a.shape[2]))
+    for t in frame_chunks(a.shape[0]):
+        big = np.where(valid[t, sel, None], a[t, sel], np.nan)
+        with np.errstate(invalid="ignore"):
+            ext[t] = np.nanmax(big, axis=1) - np.nanmin(big, axis=1)
     return int(np.argmax(np.nanmedian(ext, axis=0)))
 
 
@@ -105,7 +110,7 @@ def find_contacts(motion: AnyMotion, a: np.ndarray, valid: np.ndarray, unit_cm: 
     # the body only: a static floor root far from the body (Bandai-Namco) must not make a walk's
     # direction look like the vertical
     body = motion.skeleton.body_points() if isinstance(motion, Motion) else np.arange(a.shape[1])
-    up = up_axis(a[:, body], valid[:, body]) if a.shape[0] else 1
+    up = up_axis(a, valid, body) if a.shape[0] else 1
     feet = foot_points(motion, a, valid, up, pairs) if a.shape[0] else np.zeros(0, dtype=np.int64)
     steps = np.zeros((max(a.shape[0] - 1, 0), feet.size), dtype=bool)
     if a.shape[0] < 2:

@@ -14,6 +14,7 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from mocapz.errors import MocapzError
+from mocapz.metrics.chunks import CHUNK_FRAMES, frame_chunks  # noqa: F401 (re-exported)
 from mocapz.metrics.contacts import find_contacts, foot_points, up_axis  # noqa: F401 (re-exported)
 from mocapz.metrics.skate import foot_skates, jitter_pct
 from mocapz.model.motion import AnyMotion, MarkerMotion, Motion
@@ -98,14 +99,6 @@ def positions_pair(original: AnyMotion, decoded: AnyMotion) -> tuple[np.ndarray,
 
 
 PAIR_VALUES = 1 << 21  # differences (frames x rows x points x 3) made at a time by pair_distances: 16 MB of float64
-CHUNK_FRAMES = 1024  # frames at a time of the figures' (frames, points, 3) temporaries (peak memory)
-
-
-def frame_chunks(frames: int, chunk: int = CHUNK_FRAMES) -> list[slice]:
-    """Consecutive slices of at most ``chunk`` frames covering ``frames`` frames."""
-    return [slice(s, min(s + chunk, frames)) for s in range(0, frames, chunk)]
-
-
 def distortion_pct(a: np.ndarray, b: np.ndarray, valid: np.ndarray | None = None) -> float:
     """Karni-Gotsman ``100 ||A - B||_F / ||A - E(A)||_F`` with ``E(A)`` the per-point temporal mean (positions
     ``(frames, points, 3)``, ``valid`` ``(frames, points)`` present samples, default all). With every sample
@@ -190,12 +183,15 @@ def bone_len_err(a: np.ndarray, b: np.ndarray, valid: np.ndarray, pairs: np.ndar
     """Max over frames and bones of ``|len_decoded - len_original| / len_original``."""
     if len(pairs) == 0:
         return 0.0
-    la = np.linalg.norm(a[:, pairs[:, 0]] - a[:, pairs[:, 1]], axis=-1)
-    lb = np.linalg.norm(b[:, pairs[:, 0]] - b[:, pairs[:, 1]], axis=-1)
-    ok = valid[:, pairs[:, 0]] & valid[:, pairs[:, 1]] & (la > 1e-9)
-    if not ok.any():
-        return 0.0
-    return float(np.max(np.abs(lb - la)[ok] / la[ok]))
+    worst = None
+    for t in frame_chunks(a.shape[0]):  # a chunk of frames at a time: the largest of their largest
+        la = np.linalg.norm(a[t, pairs[:, 0]] - a[t, pairs[:, 1]], axis=-1)
+        lb = np.linalg.norm(b[t, pairs[:, 0]] - b[t, pairs[:, 1]], axis=-1)
+        ok = valid[t, pairs[:, 0]] & valid[t, pairs[:, 1]] & (la > 1e-9)
+        if ok.any():
+            part = float(np.max(np.abs(lb - la)[ok] / la[ok]))
+            worst = part if worst is None or part > worst or np.isnan(part) else worst
+    return 0.0 if worst is None else worst
 
 
 def foot_skate(motion: AnyMotion, a: np.ndarray, b: np.ndarray, valid: np.ndarray,

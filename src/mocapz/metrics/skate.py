@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from mocapz.metrics.chunks import frame_chunks
 from mocapz.metrics.contacts import Contacts, find_contacts
 from mocapz.model.motion import AnyMotion
 
@@ -91,13 +92,21 @@ def foot_skates(motion: AnyMotion, a: np.ndarray, b: np.ndarray, valid: np.ndarr
             skate_difference(con, a, b, fps, window_steps(fps)))
 
 
-def acceleration_energy(p: np.ndarray, ok: np.ndarray) -> float:
+def acceleration_energy(p: np.ndarray, ok: np.ndarray, valid: np.ndarray | None = None) -> float:
     """``sum |p[t+1] - 2 p[t] + p[t-1]|^2`` over frames t and points where ``ok`` ``(frames - 2, points)``.
 
-    ``p`` is ``(frames, points, 3)``; the result is in squared file units (per squared frame).
+    ``p`` is ``(frames, points, 3)``, its samples taken as 0 where ``valid`` ``(frames, points)`` is False; the
+    result is in squared file units (per squared frame). The terms are made a chunk of frames at a time
+    (:data:`~mocapz.metrics.chunks.CHUNK_FRAMES`: a long clip's work arrays stay small) and summed at once, in the
+    order of the whole array.
     """
-    acc = p[2:] - 2.0 * p[1:-1] + p[:-2]
-    sq = np.where(ok, np.sum(acc * acc, axis=-1), 0.0)
+    sq = np.zeros(ok.shape)
+    for t in frame_chunks(sq.shape[0]):
+        q = p[t.start:t.stop + 2]
+        if valid is not None:
+            q = np.where(valid[t.start:t.stop + 2, :, None], q, 0.0)
+        acc = q[2:] - 2.0 * q[1:-1] + q[:-2]
+        sq[t] = np.where(ok[t], np.sum(acc * acc, axis=-1), 0.0)
     return float(sq.sum())
 
 
@@ -111,8 +120,8 @@ def jitter_pct(a: np.ndarray, b: np.ndarray, valid: np.ndarray) -> float | None:
     if a.shape[0] < 3:
         return None
     ok = valid[2:] & valid[1:-1] & valid[:-2]
-    ea = acceleration_energy(np.where(valid[..., None], a, 0.0), ok)
-    eb = acceleration_energy(np.where(valid[..., None], b, 0.0), ok)
+    ea = acceleration_energy(a, ok, valid)
+    eb = acceleration_energy(b, ok, valid)
     if ea == 0.0:
         return 0.0 if eb == 0.0 else float("inf")
     return 100.0 * (eb / ea - 1.0)

@@ -22,8 +22,8 @@ import numpy as np
 
 from mocapz.codecs.correction.bounds import Layout, covers
 from mocapz.codecs.target import ErrorMetric
+from mocapz.metrics.chunks import frame_chunks
 from mocapz.metrics.contacts import Contacts, find_contacts
-from mocapz.metrics.figures import frame_chunks
 from mocapz.model.motion import AnyMotion, BlockOf, MarkerMotion
 
 EDGE = 2  # frames before a block that the accelerations of its first frames take in (second differences)
