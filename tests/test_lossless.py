@@ -428,3 +428,21 @@ def test_index_lists_packed_fast_for_hardly_more_bytes(monkeypatch: pytest.Monke
     slow = mocapz.compress(m, "lossless")
     assert len(slow) <= len(fast) <= 1.001 * len(slow)
     assert np.array_equal(mocapz.decompress(fast).values, m.values)
+
+
+@pytest.mark.parametrize("rel", ["cmu/bvh/09_06.bvh", "cmu/c3d/01_01.c3d"])
+def test_exact_copy_figures_are_evaluate_figures(rel: str) -> None:
+    """A lossless round trip's error figures without positions (what ``mocapz compress`` prints) are
+    :func:`evaluate`'s; one value changed, or another kind, and they are not taken."""
+    from mocapz.metrics.figures import evaluate, exact_copy
+
+    m = mocapz.load(data_path(rel)).slice(0, 300)
+    back = mocapz.decompress(mocapz.compress(m, "lossless"))
+    rep, full = exact_copy(m, back), evaluate(m, back)
+    assert rep is not None
+    for name in ("distortion_pct", "arms", "max_err", "p99_err", "bone_len_err", "unit_cm", "frames", "points"):
+        assert getattr(rep, name) == getattr(full, name)
+    values = back.values.copy()
+    values[100, 0, ...] = np.nextafter(values[100, 0, ...], np.inf)  # one value a float's last bit off
+    changed = back.with_values(values)
+    assert exact_copy(m, changed) is None and evaluate(m, changed).max_err > 0

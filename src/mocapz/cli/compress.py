@@ -146,7 +146,7 @@ def _one(path: Path, out: Path, codec: str, options: dict[str, Any], block: str 
     from mocapz.codecs import get_codec
     from mocapz.io import load
     from mocapz.metrics.c3d_extras import describe, extras_errors
-    from mocapz.metrics.figures import evaluate, size_figures
+    from mocapz.metrics.figures import evaluate, exact_copy, size_figures
 
     name = STDIN_NAME if str(path) == "-" else str(path)
     if str(path) == "-" and rng == (None, None, None) and unit is None:
@@ -180,7 +180,7 @@ def _one(path: Path, out: Path, codec: str, options: dict[str, Any], block: str 
         advance.stage("verifying every frame")
         release_free_memory()  # the encoder's freed arrays, not beside the decoder's (peak resident memory)
         decoded = decompress(data)
-        rep = evaluate(motion, decoded)
+        rep = exact_copy(motion, decoded) or evaluate(motion, decoded)  # a lossless round trip: zero, no positions
         rest = extras_errors(motion, decoded)
     write_output(out, data, force)
     figs: dict[str, Any] = size_figures(motion, len(data), source_bytes)
