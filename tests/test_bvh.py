@@ -475,3 +475,42 @@ def test_common_decimals_of_a_long_clip_in_steps() -> None:
         got, want = common.common_decimals(v), _decimals_whole(v)
         assert (got is None) == (want is None) and (got is None or np.array_equal(got, want))
     assert common.common_decimals(cases[0]) is not None and common.common_decimals(cases[-1]) is None
+
+
+def _rows_before(values: np.ndarray, decimals: np.ndarray | None, sep: str = " ") -> str:
+    """format_rows made whole (its code before it went a few thousand rows a piece)."""
+    from mocapz.io.common import exception_budget, fits_decimals
+
+    if decimals is None:
+        return "\n".join(sep.join(map(repr, row)) for row in values.tolist()) + "\n"
+    dec = np.broadcast_to(np.asarray(decimals, dtype=np.int64), (values.shape[1],))
+    fmts = [f"%.{int(d)}f" for d in dec]
+    off = ~fits_decimals(values, dec) & np.isfinite(values)
+    exact = off & (off.sum(axis=0) <= exception_budget(values.shape[0]))[None, :]
+    noise = (np.abs(values) < 0.5 * 10.0 ** (-dec.astype(float))) & ~fits_decimals(values, dec) & ~exact
+    lines = [sep.join(fmts) % tuple(row) for row in np.where(noise, 0.0, values).tolist()]
+    for r in np.flatnonzero(exact.any(axis=1)).tolist():
+        lines[r] = sep.join(repr(v) if e else f % v
+                            for f, v, e in zip(fmts, values[r].tolist(), exact[r].tolist(), strict=True))
+    return "\n".join(lines) + "\n"
+
+
+def test_rows_written_in_pieces_are_the_whole_text(tmp_path: Path) -> None:
+    """A clip of several :data:`~mocapz.io.common.DECIMAL_ROWS` pieces writes the text made whole: its own
+    decimals with a few exact values (-0, float artefacts) across the pieces, a lossy copy, shortest repr."""
+    from mocapz.io import common
+
+    m = read_bvh(data_path("cmu/bvh/06_13.bvh"))
+    rows = 2 * common.DECIMAL_ROWS + 11
+    values = np.concatenate([m.channels, m.channels[::-1]])[:rows].copy()
+    rng = np.random.default_rng(2)
+    at = rng.choice(rows, 40, replace=False)
+    values[at, 7] += 1e-9  # off the column's decimals: exact values, in every piece
+    values[at[:5], 8] = -0.0
+    noisy = values + rng.normal(0, 1e-3, values.shape)  # a lossy decode: rounded, noise near zero to 0.000
+    for v, dec in ((values, m.decimals), (noisy, m.decimals), (values[:300], None), (values[:0], m.decimals)):
+        assert common.format_rows(v, dec) == _rows_before(v, dec)
+    out = tmp_path / "long.bvh"
+    write_bvh(m.with_channels(values, m.decimals), out)
+    back = read_bvh(out)
+    assert np.array_equal(back.channels, values) and out.read_text().endswith(_rows_before(values, m.decimals))

@@ -93,10 +93,11 @@ def iter_spans(decode_one: Callable[[Sections, ClipHeader], AnyMotion], parts: l
     while first > 0 and blocks.CONTINUES in parts[first]:
         first -= 1
     before = None
+    batch = spans[meets[-1]][1] - spans[first][0]  # the frames of every block decoded here
     for i in range(first, meets[-1] + 1):
         a, b = spans[i]
         try:
-            piece = decode_block(decode_one, parts[i], header, b - a, before)
+            piece = decode_block(decode_one, parts[i], header, b - a, before, batch)
         except ValueError as exc:
             raise ValueError(f"block {i}: {exc}") from None
         before = last_frames(piece)
@@ -105,17 +106,18 @@ def iter_spans(decode_one: Callable[[Sections, ClipHeader], AnyMotion], parts: l
 
 
 def decode_block(decode_one: Callable[[Sections, ClipHeader], AnyMotion], part: Sections, header: ClipHeader,
-                 frames: int, before: np.ndarray | None) -> AnyMotion:
+                 frames: int, before: np.ndarray | None, batch: int | None = None) -> AnyMotion:
     """One block's motion (ValueError if it is not ``frames`` frames long); a block that continues the one before
     it (its section :data:`~mocapz.format.blocks.CONTINUES`) is given that block's last decoded frames
-    ``before`` (:func:`last_frames`; ValueError without it)."""
+    ``before`` (:func:`last_frames`; ValueError without it); ``batch``: the frames of all the blocks decoded with
+    it (:attr:`~mocapz.model.header.ClipHeader.batch_frames`)."""
     if blocks.CONTINUES in part:
         if before is None:
             raise ValueError("it continues the block before it, which is missing")
         part = {k: v for k, v in part.items() if k != blocks.CONTINUES}
     else:
         before = None
-    piece = decode_one(part, replace(header, frames=frames, before=before))
+    piece = decode_one(part, replace(header, frames=frames, before=before, batch_frames=batch))
     if piece.n_frames != frames:
         raise ValueError(f"it decoded to {piece.n_frames} frames, not {frames}")
     return piece

@@ -17,10 +17,10 @@ from mocapz.io.common import (
     CMU_UNIT_CM,
     atomic_write,
     common_decimals,
-    format_rows,
     guess_unit_cm,
     read_text,
     rest_height,
+    row_texts,
     snap_rate,
 )
 from mocapz.model.motion import Motion
@@ -263,8 +263,13 @@ def write_bvh(motion: Motion, path: str | os.PathLike[str], force: bool = False)
     head = bvh_head(motion, motion.n_frames, path)
     if not np.isfinite(motion.channels).all():
         raise FormatError(path, "refusing to write non-finite channel values")
-    text = head + (format_rows(motion.channels, bvh_decimals(motion)) if motion.n_frames else "")
-    atomic_write(path, lambda tmp: tmp.write_text(text), force=force)
+    def write(tmp: Path) -> None:  # the rows a few thousand at a time (a long clip's text is not made whole)
+        with open(tmp, "w") as f:
+            f.write(head)
+            if motion.n_frames:
+                f.writelines(row_texts(motion.channels, bvh_decimals(motion)))
+
+    atomic_write(path, write, force=force)
 
 
 def bvh_decimals(motion: Motion) -> Any:

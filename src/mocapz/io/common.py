@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import os
 import tempfile
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import numpy as np
@@ -79,8 +79,10 @@ def exact_text_mask(values: np.ndarray, decimals: np.ndarray) -> np.ndarray:
     """``(rows, columns)`` True for the finite values a writer must write with ``repr`` to read back exactly:
     those off their column's decimals, in columns where they are few (:func:`exception_budget`). Columns
     where most values are off (decoded by a lossy codec) are rounded to the decimals instead."""
-    fits = fits_decimals(values, decimals)
-    off = ~fits & np.isfinite(values)
+    off = np.empty(values.shape, dtype=bool)
+    for a in range(0, values.shape[0], DECIMAL_ROWS):  # a few thousand rows at a time (the same values)
+        part = values[a:a + DECIMAL_ROWS]
+        off[a:a + DECIMAL_ROWS] = ~fits_decimals(part, decimals) & np.isfinite(part)
     few = off.sum(axis=0) <= exception_budget(values.shape[0])
     return off & few[None, :]
 
@@ -226,7 +228,14 @@ def read_text(path: str | os.PathLike[str]) -> str:
 
 
 def format_rows(values: np.ndarray, decimals: np.ndarray | int | None, sep: str = " ") -> str:
-    """Format a ``(rows, columns)`` array as text lines with fixed decimals per column.
+    """Format a ``(rows, columns)`` array as text lines with fixed decimals per column (:func:`row_texts`
+    joined)."""
+    return "".join(row_texts(values, decimals, sep))
+
+
+def row_texts(values: np.ndarray, decimals: np.ndarray | int | None, sep: str = " ") -> Iterator[str]:
+    """The text lines of a ``(rows, columns)`` array, :data:`DECIMAL_ROWS` rows a piece (each ending in a newline;
+    no rows: one newline), so that a long clip's text is written without all of it in memory at once.
 
     ``decimals=None`` writes the shortest text that reads back to the same float64 (``repr``). With decimals,
     the few values off their column's decimals (:func:`exact_text_mask`) are written with ``repr`` too, and
@@ -234,20 +243,27 @@ def format_rows(values: np.ndarray, decimals: np.ndarray | int | None, sep: str 
     are rounded (those that round to zero without being zero are written ``0.000``, not ``-0.000``).
     """
     values = np.asarray(values, dtype=np.float64)
+    if not values.shape[0]:
+        yield "\n"
+        return
     if decimals is None:
-        return "\n".join(sep.join(map(repr, row)) for row in values.tolist()) + "\n"
+        for a in range(0, values.shape[0], DECIMAL_ROWS):
+            yield "\n".join(sep.join(map(repr, row)) for row in values[a:a + DECIMAL_ROWS].tolist()) + "\n"
+        return
     cols = values.shape[1]
     dec = np.broadcast_to(np.asarray(decimals, dtype=np.int64), (cols,))
     fmts = [f"%.{int(d)}f" for d in dec]
     fmt = sep.join(fmts)
     exact = exact_text_mask(values, dec)
-    noise = (np.abs(values) < 0.5 * 10.0 ** (-dec.astype(float))) & ~fits_decimals(values, dec) & ~exact
-    rounded = np.where(noise, 0.0, values)
-    lines = [fmt % tuple(row) for row in rounded.tolist()]
-    for r in np.flatnonzero(exact.any(axis=1)).tolist():
-        lines[r] = sep.join(repr(v) if e else f % v
-                            for f, v, e in zip(fmts, values[r].tolist(), exact[r].tolist(), strict=True))
-    return "\n".join(lines) + "\n"
+    half = 0.5 * 10.0 ** (-dec.astype(float))
+    for a in range(0, values.shape[0], DECIMAL_ROWS):
+        part, ex = values[a:a + DECIMAL_ROWS], exact[a:a + DECIMAL_ROWS]
+        noise = (np.abs(part) < half) & ~fits_decimals(part, dec) & ~ex
+        lines = [fmt % tuple(row) for row in np.where(noise, 0.0, part).tolist()]
+        for r in np.flatnonzero(ex.any(axis=1)).tolist():
+            lines[r] = sep.join(repr(v) if e else f % v
+                                for f, v, e in zip(fmts, part[r].tolist(), ex[r].tolist(), strict=True))
+        yield "\n".join(lines) + "\n"
 
 
 def snap_rate(rate: float) -> float:

@@ -43,6 +43,8 @@ class ClipHeader:
         before: a block of a stream that continues the block before it: that block's decoded values of its
             last frames, ``(frames, columns)`` (:func:`mocapz.blocking.last_frames`; the values of
             :attr:`value_shape`'s last axes, flattened), or of its last frame, ``(columns,)``; else ``None``.
+        batch_frames: a block decoded as part of a longer read (:func:`mocapz.blocking.iter_spans`): the frames
+            of every block that read decodes, the work ahead a decoder may prepare for; else ``None``.
     """
 
     kind: Literal["skeleton", "markers"]
@@ -57,6 +59,7 @@ class ClipHeader:
     metadata: dict[str, Any] = field(default_factory=dict)
     quantum: float | None = None
     before: np.ndarray | None = field(default=None, compare=False, repr=False)
+    batch_frames: int | None = field(default=None, compare=False, repr=False)
 
     @classmethod
     def of(cls, motion: AnyMotion) -> ClipHeader:

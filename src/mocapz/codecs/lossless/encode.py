@@ -15,6 +15,7 @@ import struct
 import numpy as np
 
 from mocapz.codecs.gaps import pack_mask
+from mocapz.codecs.lossless import fast
 from mocapz.codecs.lossless.coding import encode_indices, encode_residuals, pack_small
 from mocapz.codecs.lossless.columns import column_form, pack_columns
 from mocapz.codecs.lossless.integers import (
@@ -71,6 +72,9 @@ def encode(motion: AnyMotion, **options: object) -> dict[str, bytes]:
 
         raise OptionError(f"the lossless codec takes no options (got {', '.join(options)})")
     values, gaps = value_matrix(motion)
+    whole = motion.metadata.get("block_of")  # a block of a longer clip: the compiled kernels where it pays for them
+    if whole is not None:
+        fast.expect(whole.clip.n_frames * values.shape[1])
     decimals = motion_decimals(motion, values.shape[1])
     form = choose_form(values, decimals, motion.quantum if isinstance(motion, MarkerMotion) else None)
     fits = form.rep in (REP_DECIMAL, *QUANTUM_REPS) and form.exceptions.size * 1000 <= values.size

@@ -13,7 +13,8 @@ without numba; the kernels (:mod:`._kernels`) compute the very same integers, fa
 
 numba is imported lazily: loading it (and the cached kernels) costs about half a second once per process,
 more than the numpy path spends on a clip or two, so it is loaded once this process has asked the lossless
-codec for :data:`LAZY_VALUES` values in all (or when numba is already imported); ``MOCAPZ_NO_NUMBA=1`` (or
+codec for :data:`LAZY_VALUES` values in all (or when numba is already imported), or at the first block of a clip of
+:data:`LAZY_AHEAD` values (:func:`expect`); ``MOCAPZ_NO_NUMBA=1`` (or
 :func:`set_enabled`) turns it off. Either path gives the same bytes and values.
 """
 
@@ -26,6 +27,11 @@ from types import ModuleType
 LAZY_VALUES = 3_000_000  # values (frames x columns) coded or decoded before numba is worth loading: `mocapz
 # decompress` of 06_13 played to 14,718 frames (1.4 M values) took 1.19 s on the NumPy path against 1.78 s loading it,
 # of 68,684 frames 5.4 against 4.0 s; compress broke even at 14,718 (2.65 s either way)
+
+LAZY_AHEAD = 1_500_000  # values of one clip coded or decoded block by block from which numba is loaded at its
+# first block (:func:`expect`): the whole clip pays for it. The 10-minute synthetic clip (72,000 frames, 6.9 M
+# values) decoded in 1.15-1.48 s loaded first against 2.83-3.24 s with its first 3 M values on the NumPy path;
+# 06_13 (4,906 frames, 0.47 M) 0.25-0.28 s on the NumPy path against 0.47-0.58 loading it
 
 _state: dict[str, ModuleType | None] = {}
 _work = [0]
@@ -59,3 +65,10 @@ def kernels(work: int = 0, force: bool = False) -> ModuleType | None:
         else:
             _state["mod"] = _kernels
     return _state["mod"]
+
+
+def expect(values: int) -> None:
+    """A clip of ``values`` values (frames x columns) is being coded or decoded block by block: the kernels are
+    loaded now where it holds :data:`LAZY_AHEAD` values or more (not after its first :data:`LAZY_VALUES`)."""
+    if values >= LAZY_AHEAD:
+        kernels(force=True)
