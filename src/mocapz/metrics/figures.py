@@ -99,6 +99,8 @@ def positions_pair(original: AnyMotion, decoded: AnyMotion) -> tuple[np.ndarray,
 
 
 PAIR_VALUES = 1 << 21  # differences (frames x rows x points x 3) made at a time by pair_distances: 16 MB of float64
+
+
 def distortion_pct(a: np.ndarray, b: np.ndarray, valid: np.ndarray | None = None) -> float:
     """Karni-Gotsman ``100 ||A - B||_F / ||A - E(A)||_F`` with ``E(A)`` the per-point temporal mean (positions
     ``(frames, points, 3)``, ``valid`` ``(frames, points)`` present samples, default all). With every sample
@@ -183,15 +185,14 @@ def bone_len_err(a: np.ndarray, b: np.ndarray, valid: np.ndarray, pairs: np.ndar
     """Max over frames and bones of ``|len_decoded - len_original| / len_original``."""
     if len(pairs) == 0:
         return 0.0
-    worst = None
-    for t in frame_chunks(a.shape[0]):  # a chunk of frames at a time: the largest of their largest
+    worst = []  # each chunk of frames' largest: the largest of them is the whole clip's
+    for t in frame_chunks(a.shape[0]):
         la = np.linalg.norm(a[t, pairs[:, 0]] - a[t, pairs[:, 1]], axis=-1)
         lb = np.linalg.norm(b[t, pairs[:, 0]] - b[t, pairs[:, 1]], axis=-1)
         ok = valid[t, pairs[:, 0]] & valid[t, pairs[:, 1]] & (la > 1e-9)
         if ok.any():
-            part = float(np.max(np.abs(lb - la)[ok] / la[ok]))
-            worst = part if worst is None or part > worst or np.isnan(part) else worst
-    return 0.0 if worst is None else worst
+            worst.append(np.max(np.abs(lb - la)[ok] / la[ok]))
+    return float(np.max(worst)) if worst else 0.0
 
 
 def foot_skate(motion: AnyMotion, a: np.ndarray, b: np.ndarray, valid: np.ndarray,
