@@ -38,6 +38,7 @@ bench: $(STAMP)
 	$(BIN)/python scripts/run_all.py
 	$(BIN)/python scripts/quality.py --jobs 2
 	$(BIN)/python scripts/speed.py
+	$(BIN)/python scripts/memory.py
 
 clean:
 	rm -rf $(VENV) out .pytest_cache
