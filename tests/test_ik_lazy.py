@@ -34,7 +34,8 @@ print(json.dumps({"bytes": hashlib.sha256(data).hexdigest(),
 
 
 def _run(path: Path, mode: str, **env: str) -> dict:
-    e = {k: v for k, v in os.environ.items() if k != "MOCAPZ_NO_NUMBA"} | {"PYTHONPATH": str(SRC), **env}
+    e = {k: v for k, v in os.environ.items() if k not in ("MOCAPZ_NO_NUMBA", "MOCAPZ_NO_AOT")}
+    e |= {"PYTHONPATH": str(SRC), **env}
     out = subprocess.run([sys.executable, "-c", SCRIPT, str(path), mode], env=e, capture_output=True, text=True,
                          timeout=300, check=True)
     return json.loads(out.stdout.strip().splitlines()[-1])
@@ -47,9 +48,11 @@ def test_short_clip_same_output_whether_numba_is_loaded_or_not() -> None:
     off = _run(path, "fresh", MOCAPZ_NO_NUMBA="1")
     assert (plain["bytes"], plain["values"]) == (off["bytes"], off["values"])
     pytest.importorskip("numba")
-    loaded = _run(path, "preload")
+    loaded = _run(path, "preload", MOCAPZ_NO_AOT="1")  # numba's just-in-time kernels loaded first
     assert loaded["numba"]
     assert (loaded["bytes"], loaded["values"]) == (plain["bytes"], plain["values"])
+    ahead = _run(path, "preload", MOCAPZ_NO_AOT="0")  # the kernels compiled ahead of time, where built
+    assert (ahead["bytes"], ahead["values"]) == (plain["bytes"], plain["values"])
 
 
 def test_the_path_is_a_function_of_the_length_only() -> None:

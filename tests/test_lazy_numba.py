@@ -38,8 +38,9 @@ print(json.dumps({"bytes": hashlib.sha256(data).hexdigest(), "coded_with_numba":
 """
 
 
-def _run(codec: str, path: Path, mode: str) -> dict:
-    env = {k: v for k, v in os.environ.items() if k != "MOCAPZ_NO_NUMBA"} | {"PYTHONPATH": str(SRC)}
+def _run(codec: str, path: Path, mode: str) -> dict:  # numba's just-in-time kernels (test_aot: ahead of time)
+    env = {k: v for k, v in os.environ.items() if k != "MOCAPZ_NO_NUMBA"} | {"PYTHONPATH": str(SRC),
+                                                                            "MOCAPZ_NO_AOT": "1"}
     out = subprocess.run([sys.executable, "-c", SCRIPT, codec, str(path), mode], env=env, capture_output=True,
                          text=True, timeout=300, check=True)
     return json.loads(out.stdout.strip().splitlines()[-1])
@@ -69,8 +70,10 @@ print(json.dumps(out))
 
 def test_a_batch_of_short_clips_loads_the_kernels_once_it_has_coded_enough() -> None:
     """Under ``LAZY_FRAMES`` a clip takes the NumPy path until the process has coded ``LAZY_WORK`` frame-rounds
-    (made small here: a batch of three 344-frame clips); the bytes stay the same."""
-    env = {k: v for k, v in os.environ.items() if k != "MOCAPZ_NO_NUMBA"} | {"PYTHONPATH": str(SRC)}
+    (made small here: a batch of three 344-frame clips); the bytes stay the same. (numba's just-in-time kernels:
+    those compiled ahead of time, where built, cost nothing to load and are used whatever the length.)"""
+    env = {k: v for k, v in os.environ.items() if k != "MOCAPZ_NO_NUMBA"} | {"PYTHONPATH": str(SRC),
+                                                                            "MOCAPZ_NO_AOT": "1"}
     path = str(data_path("cmu/bvh/02_01.bvh"))
     run = subprocess.run([sys.executable, "-c", BATCH, path, "1000"], env=env, capture_output=True, text=True,
                          timeout=300, check=True)

@@ -16,7 +16,7 @@ from typing import Any
 
 import numpy as np
 
-from mocapz import _jit
+from mocapz import _jit, aot
 from mocapz.errors import FormatError
 from mocapz.format.entropy_costs import (  # noqa: F401  (re-exported: the scale search's costs)
     HIST_VALUES,
@@ -299,7 +299,7 @@ class CompiledRangeReader(RangeReader):
     """:class:`RangeReader` with the numba kernel (:mod:`.rangekernels`): the same symbols, two to four times as
     fast. A point outside the range (corrupt data) is a FormatError."""
 
-    def __init__(self, words: np.ndarray, kernels: ModuleType) -> None:
+    def __init__(self, words: np.ndarray, kernels: ModuleType | aot.Kernels) -> None:
         self.words, self.kernels = words, kernels
         self.state = kernels.begin(words)
 
@@ -312,7 +312,7 @@ class CompiledRangeReader(RangeReader):
         return out
 
 
-_KERNELS: dict[str, ModuleType | None] = {}
+_KERNELS: dict[str, Any] = {}
 
 
 def range_decoder(body: bytes, values: int = 0) -> RangeReader:
@@ -324,10 +324,13 @@ def range_decoder(body: bytes, values: int = 0) -> RangeReader:
     return RangeReader(words) if kern is None else CompiledRangeReader(words, kern)
 
 
-def _range_kernels(values: int) -> ModuleType | None:
+def _range_kernels(values: int) -> ModuleType | aot.Kernels | None:
     if not _jit.enabled():
         return None
     if "mod" in _KERNELS:
+        return _KERNELS["mod"]
+    if aot.kernels("range") is not None:  # compiled ahead of time: nothing to load
+        _KERNELS["mod"] = aot.kernels("range")
         return _KERNELS["mod"]
     if ("numba" not in sys.modules and values < LAZY_VALUES) or not _jit.room_to_compile():
         return None

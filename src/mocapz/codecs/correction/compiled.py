@@ -9,6 +9,8 @@ import importlib
 import sys
 from types import ModuleType
 
+from mocapz import aot
+
 #: frames from which the compiled kernels are loaded to code a clip (when numba is not loaded already: loading it and
 #: the kernels from numba's cache takes about 0.5 s and 130 MB). The whole `mocapz compress` (effort fast) on CMU 02_05
 #: (1,855 frames) took 0.64-0.73 s on the NumPy path against 1.10-1.42 s loading them with quant, 1.2-1.4 against
@@ -31,17 +33,22 @@ def note_round(frames: int) -> None:
     _WORK[0] += frames
 
 
-def kernels(frames: int, module: str = "chainkernels", decoding: bool = False) -> ModuleType | None:
-    """The compiled kernels ``module`` (of this package) for a clip of ``frames`` frames, or None: without numba,
-    when turned off, under an address-space cap that leaves no room to compile, or on a clip under
+def kernels(frames: int, module: str = "chainkernels", decoding: bool = False) -> ModuleType | aot.Kernels | None:
+    """The compiled kernels ``module`` (of this package) for a clip of ``frames`` frames: those compiled ahead of
+    time (:mod:`mocapz.aot`) whatever its length, else numba's module, or None: without numba, when turned off,
+    under an address-space cap that leaves no room to compile, or on a clip under
     :data:`LAZY_FRAMES` (``decoding``: :data:`LAZY_DECODE_FRAMES`) while numba is not loaded yet and this process
     has coded fewer than :data:`LAZY_WORK` frame-rounds (loading it costs more than the NumPy path spends there).
     Either path gives the same bits."""
     from mocapz.codecs.pga import ikjit  # the one switch of the compiled kernels (here: no import cycle)
 
-    if not ikjit.enabled() or (frames < (LAZY_DECODE_FRAMES if decoding else LAZY_FRAMES)
-                               and _WORK[0] < LAZY_WORK and "numba" not in sys.modules) \
-            or not ikjit.room_to_compile():
+    if not ikjit.enabled():
+        return None
+    ahead = aot.kernels(module.removesuffix("kernels"))
+    if ahead is not None:  # compiled ahead of time: nothing to load, whatever the clip's length
+        return ahead
+    if (frames < (LAZY_DECODE_FRAMES if decoding else LAZY_FRAMES) and _WORK[0] < LAZY_WORK
+            and "numba" not in sys.modules) or not ikjit.room_to_compile():
         return None
     if module not in _LOADED:
         try:

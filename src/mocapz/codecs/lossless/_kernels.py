@@ -7,12 +7,12 @@ import math
 import numpy as np
 from numba import njit
 
+from mocapz.codecs.lossless.status import BAD_DATA, BAD_ESCAPES, BAD_LOW_BITS, OK
 from mocapz.format.rangekernels import LIMIT, start, step
 
 FRAC, RATE, HIGH_BITS = 4, 2, 7
 MAX_STATE = 1 << 50
 MIN_SCALE = 0.04
-OK, BAD_ESCAPES, BAD_LOW_BITS, BAD_DATA = 0, 1, 2, 3
 
 
 @njit(cache=True)

@@ -14,6 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from mocapz.codecs.lossless import fast
+from mocapz.codecs.lossless.status import BAD_ESCAPES, BAD_LOW_BITS
 from mocapz.errors import FormatError
 from mocapz.format.entropy import (
     HAVE_CONSTRICTION,
@@ -179,7 +180,7 @@ def decode_residuals(data: bytes, mask: np.ndarray) -> np.ndarray:
         status = kern.decode_residual_rows(words, np.ascontiguousarray(mask, dtype=bool), _state_of(code),
                                            np.ascontiguousarray(escapes, dtype=np.int64), bits8, out)
         if status:
-            what = {kern.BAD_ESCAPES: "escapes", kern.BAD_LOW_BITS: "low bits"}.get(status)
+            what = {BAD_ESCAPES: "escapes", BAD_LOW_BITS: "low bits"}.get(status)
             raise FormatError(None, f"corrupted residual stream ({what})" if what
                               else "corrupted entropy-coded data (invalid range-coded data)")
         return out

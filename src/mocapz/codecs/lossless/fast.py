@@ -23,6 +23,9 @@ from __future__ import annotations
 import os
 import sys
 from types import ModuleType
+from typing import Any
+
+from mocapz import aot
 
 LAZY_VALUES = 3_000_000  # values (frames x columns) coded or decoded before numba is worth loading: `mocapz
 # decompress` of 06_13 played to 14,718 frames (1.4 M values) took 1.19 s on the NumPy path against 1.78 s loading it,
@@ -33,7 +36,7 @@ LAZY_AHEAD = 1_500_000  # values of one clip coded or decoded block by block fro
 # values) decoded in 1.15-1.48 s loaded first against 2.83-3.24 s with its first 3 M values on the NumPy path;
 # 06_13 (4,906 frames, 0.47 M) 0.25-0.28 s on the NumPy path against 0.47-0.58 loading it
 
-_state: dict[str, ModuleType | None] = {}
+_state: dict[str, Any] = {}
 _work = [0]
 _enabled = os.environ.get("MOCAPZ_NO_NUMBA", "") in ("", "0")
 
@@ -45,8 +48,9 @@ def set_enabled(flag: bool) -> bool:
     return before
 
 
-def kernels(work: int = 0, force: bool = False) -> ModuleType | None:
-    """The kernels module, or None: without numba, when turned off, or while loading it would not pay yet.
+def kernels(work: int = 0, force: bool = False) -> ModuleType | aot.Kernels | None:
+    """The kernels (compiled ahead of time, :mod:`mocapz.aot`, else numba's module), or None: without numba, when
+    turned off, or while loading numba would not pay yet.
 
     Args:
         work: values (frames x columns) about to be coded or decoded (added to this process's total).
@@ -55,6 +59,8 @@ def kernels(work: int = 0, force: bool = False) -> ModuleType | None:
     if not _enabled:
         return None
     _work[0] += work
+    if "mod" not in _state and aot.kernels("lossless") is not None:
+        _state["mod"] = aot.kernels("lossless")  # compiled ahead of time: nothing to load
     if "mod" not in _state:
         if not (force or "numba" in sys.modules or _work[0] >= LAZY_VALUES):
             return None

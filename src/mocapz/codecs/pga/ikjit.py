@@ -7,11 +7,12 @@ damping schedule, acceptance rule), the same closed-form rotations and right Jac
 (``(G_n J_r(w_n) B_n)`` columns crossed with ``p_e - o_n``), Gaussian elimination of the damped normal
 equations. The results agree with the NumPy path to float rounding (tests/test_pga_speed_equal.py).
 
-numba is imported lazily and only here; ``MOCAPZ_NO_NUMBA=1`` in the environment (or :func:`set_enabled`)
-selects the NumPy path, as on a machine without numba. A clip under :data:`LAZY_FRAMES` frames takes the NumPy
-path too, whether or not numba is loaded already: loading it costs more than the NumPy path spends there, and
-the path must be a function of the clip alone (the two agree to rounding, not to the bit, and the encoder's
-rate control and correction layer decode with it, so the file's bytes could depend on it).
+The kernels compiled ahead of time (:mod:`mocapz.aot`, built by ``make``) are used where built, without importing
+numba; else numba is imported lazily and only here; ``MOCAPZ_NO_NUMBA=1`` in the environment (or
+:func:`set_enabled`) selects the NumPy path, as on a machine without numba. A clip under :data:`LAZY_FRAMES` frames
+takes the NumPy path too, whether or not numba is loaded already: loading it costs more than the NumPy path spends
+there, and the path must be a function of the clip alone (the two agree to rounding, not to the bit, and the
+encoder's rate control and correction layer decode with it, so the file's bytes could depend on it).
 """
 
 from __future__ import annotations
@@ -23,6 +24,7 @@ from typing import Any
 
 import numpy as np
 
+from mocapz import aot
 from mocapz._jit import COMPILE_ROOM, enabled, room_to_compile, set_enabled
 
 _KERNELS: dict[str, Any] | None = None
@@ -50,6 +52,9 @@ def kernels(frames: int | None = None) -> dict[str, Any] | None:
     global _KERNELS
     if not enabled() or (frames is not None and frames < LAZY_FRAMES and not _STREAM.get()):
         return None
+    if _KERNELS is None and aot.kernels("ik") is not None:  # compiled ahead of time: nothing to load
+        ahead = aot.kernels("ik")
+        _KERNELS = {name: getattr(ahead, name) for name in ("solve_frames", "pose", "euler_channels")}
     if _KERNELS is None:
         try:
             import numba  # noqa: F401
