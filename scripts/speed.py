@@ -102,23 +102,37 @@ def worker(spec: dict[str, Any]) -> dict[str, Any]:
 
 
 def warm_up(motion: Any, codec: str, opts: dict[str, Any]) -> bool:
-    """Load numba (when installed) and the kernels ``codec`` uses, untimed: a round trip of the clip's first
-    :data:`WARM_FRAMES` frames with the options about to be timed. The timings are then those of a process that
-    has coded a long clip already (a library, a batch); loading numba and its cached kernels (about half a
-    second, once per process) is left out, and the kernels' lazy loading no longer leaves a short clip on the
-    NumPy path (the same bytes and values either way). The whole command's column keeps the cold start.
-    Returns whether numba is loaded."""
-    import mocapz  # noqa: PLC0415
+    """Load the kernels ``codec`` uses, untimed: a round trip of the clip's first :data:`WARM_FRAMES` frames with
+    the options about to be timed. The timings are then those of a process that has coded a long clip already (a
+    library, a batch): with numba's just-in-time kernels, loading numba and its cache (about half a second, once
+    per process) is left out, and their lazy loading no longer leaves a short clip on the NumPy path (the same
+    bytes and values either way); the kernels compiled ahead of time (:mod:`mocapz.aot`) cost nothing to load.
+    The whole command's column keeps the cold start. Returns whether compiled kernels are used."""
+    import importlib.util  # noqa: PLC0415
 
-    try:
-        import numba  # noqa: F401, PLC0415
-    except ImportError:
+    import mocapz  # noqa: PLC0415
+    from mocapz import aot  # noqa: PLC0415
+
+    if aot.extension() is None and importlib.util.find_spec("numba") is None:
         return False
     part = motion.slice(0, min(motion.n_frames, WARM_FRAMES))
     data = mocapz.compress(part, codec=codec, **opts)
     mocapz.decompress(data)
     mocapz.decompress(data, frames=slice(0, min(SEEK_FRAMES, part.n_frames)))
     return True
+
+
+def kernels_used() -> str:
+    """Which compiled kernels the measuring processes use: those compiled ahead of time, numba's, or none."""
+    import importlib.util  # noqa: PLC0415
+
+    from mocapz import aot  # noqa: PLC0415
+
+    if aot.extension() is not None:
+        return "the kernels compiled ahead of time (`make kernels`: no numba loaded)"
+    if importlib.util.find_spec("numba") is not None:
+        return "numba's just-in-time kernels (the ahead-of-time extension not built)"
+    return "no compiled kernels (the NumPy paths)"
 
 
 def seek_starts(frames: int, length: int = SEEK_FRAMES, count: int = SEEK_STARTS) -> list[int]:
@@ -513,13 +527,14 @@ def render(rows: list[dict[str, Any]], codecs: list[str], args: argparse.Namespa
         f"Fixed settings: each codec's defaults ({', '.join(f'{c}: {o}' for c, o in FIXED.items())}); the "
         f"target is `max_error=1cm`, its process stopped after {args.time_limit + 30:.0f} s (\"over\": the "
         f"limit, {args.time_limit:.0f} s, plus 30 s for start-up and reading the clip). Encode and decode time "
-        "the library call on a loaded clip (file reading and writing excluded), in a process that has loaded numba "
-        f"and the codec's kernels first (an untimed round trip of the clip's first {WARM_FRAMES} frames with "
-        "the same options: a process that has coded a long clip already; otherwise the kernels' lazy loading "
-        "leaves a short clip on the NumPy path, with the same bytes and values). Before any measurement, one "
-        "process per codec and mode compiles the kernels into numba's on-disk cache, so that no measuring process "
-        "compiles (on a fresh checkout the first one would, at about 150 MB more); the whole command includes "
-        "Python's start-up, loading numba where it pays and reading the file, with mocapz's modules compiled to "
+        f"the library call on a loaded clip (file reading and writing excluded), with "
+        f"{info.get('kernels', 'numba')}, in a process that has loaded the codec's kernels first (an untimed "
+        f"round trip of the clip's first {WARM_FRAMES} frames with the same options: a process that has coded a "
+        "long clip already; otherwise numba's lazy loading leaves a short clip on the NumPy path, with the same "
+        "bytes and values). Before any measurement, one process per codec and mode fills numba's on-disk cache, "
+        "so that no measuring process compiles (without the ahead-of-time kernels, on a fresh checkout the first "
+        "one would, at about 150 MB more); the whole command includes Python's start-up, loading numba where it "
+        "pays (never with the ahead-of-time kernels) and reading the file, with mocapz's modules compiled to "
         "bytecode first, as an installed package has them (pip compiles them when it installs; this machine sets "
         "PYTHONDONTWRITEBYTECODE, which would otherwise make every command compile them, about 0.13 s). Memory: "
         "peak resident set of the measuring process (interpreter, numpy and the loaded clip included; the second "
@@ -621,6 +636,7 @@ def main(argv: list[str] | None = None) -> int:
     codecs = ["lossless"] + [c for c in args.codecs.split(",") if c and c != "lossless"]
     started = time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime())
     info = machine()
+    info["kernels"] = kernels_used()
     t0 = time.perf_counter()
     compile_bytecode()
     for codec in codecs:  # numba's on-disk cache filled first: no measuring process compiles (a fresh checkout would)
