@@ -5,7 +5,8 @@ Each case is one ``mocapz compress CLIP -o OUT --codec C [options]`` process, as
 encoding, decoding and verifying every frame, writing). Its peak resident set is the kernel's own figure
 (``ru_maxrss`` of the finished child, :func:`os.wait4`); its private (anonymous) and file-backed resident memory
 are sampled from ``/proc/PID/status`` (``RssAnon``, ``RssFile``) every 2 ms, largest sample kept. The file-backed
-part is mostly shared libraries' pages (numba's LLVM library above all) and depends on what the page cache holds:
+part is mostly shared libraries' pages (numba's LLVM library above all, where numba is loaded: not with the kernels
+compiled ahead of time, ``make kernels``) and depends on what the page cache holds:
 the private part is the one a second process would add. Every case runs ``--repeat`` times (default 2); the table
 gives the largest of the runs. Linux only (``/proc``).
 
@@ -102,14 +103,17 @@ def _frames(clip: Path) -> int:
 
 
 def render(rows: list[dict], frames: dict[str, int], command: str, started: str, minutes: float) -> str:
+    from mocapz import aot  # noqa: PLC0415
+
     lines = ["# Peak memory of the whole command (issue 12)", "",
              f"Written by `{command}` on {started} in {minutes:.0f} min; {platform.processor() or platform.machine()}, "
              f"Python {platform.python_version()}. See the script's docstring: one `mocapz compress` process a case "
              "(read, encode, decode and verify every frame, write), the largest of its runs. *Peak resident* is the "
              "kernel's figure for the finished process; *private* and *file-backed* are the largest samples of its "
              "anonymous and file-mapped resident memory (every 2 ms; their largest need not fall at the same instant). "
-             "File-backed pages are mostly shared libraries (numba's LLVM library: 75-100 MB once numba is loaded) "
-             "and count only where the page cache holds them; the private memory is what a second process adds. "
+             "File-backed pages are mostly shared libraries (numba's LLVM library: 75-100 MB once numba is loaded; "
+             f"compiled kernels here: {aot.in_use()}) and count only where the page cache holds them; the private "
+             "memory is what a second process adds. "
              f"Issue 12 asks for under {GOAL_MB} MB for a 5,000-frame clip with any codec and target.", "",
              "| clip | frames | codec | options | peak resident MB | private MB | file-backed MB | time s |",
              "|---|---|---|---|---|---|---|---|"]

@@ -122,19 +122,6 @@ def warm_up(motion: Any, codec: str, opts: dict[str, Any]) -> bool:
     return True
 
 
-def kernels_used() -> str:
-    """Which compiled kernels the measuring processes use: those compiled ahead of time, numba's, or none."""
-    import importlib.util  # noqa: PLC0415
-
-    from mocapz import aot  # noqa: PLC0415
-
-    if aot.extension() is not None:
-        return "the kernels compiled ahead of time (`make kernels`: no numba loaded)"
-    if importlib.util.find_spec("numba") is not None:
-        return "numba's just-in-time kernels (the ahead-of-time extension not built)"
-    return "no compiled kernels (the NumPy paths)"
-
-
 def seek_starts(frames: int, length: int = SEEK_FRAMES, count: int = SEEK_STARTS) -> list[int]:
     """``count`` first frames of ``length``-frame ranges spread evenly from the clip's start to its end."""
     last = max(frames - length, 0)
@@ -636,7 +623,11 @@ def main(argv: list[str] | None = None) -> int:
     codecs = ["lossless"] + [c for c in args.codecs.split(",") if c and c != "lossless"]
     started = time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime())
     info = machine()
-    info["kernels"] = kernels_used()
+    from mocapz import aot  # noqa: PLC0415
+
+    info["kernels"] = {"ahead of time": "the kernels compiled ahead of time (`make kernels`: no numba loaded)",
+                       "numba": "numba's just-in-time kernels (the ahead-of-time extension not built)",
+                       "none": "no compiled kernels (the NumPy paths)"}[aot.in_use()]
     t0 = time.perf_counter()
     compile_bytecode()
     for codec in codecs:  # numba's on-disk cache filled first: no measuring process compiles (a fresh checkout would)

@@ -65,8 +65,10 @@ def test_every_codec_runs_without_numba_and_gives_the_just_in_time_bytes() -> No
 def test_the_extension_is_the_source_it_was_built_from(monkeypatch: pytest.MonkeyPatch) -> None:
     _built()
     monkeypatch.setattr(aot, "_STATE", {})
+    assert aot.in_use() == "ahead of time"
     monkeypatch.setattr(aot, "stamp", lambda: 12345)  # the kernels' source changed since the build
-    assert aot.extension() is None and aot.kernels("range") is None
+    monkeypatch.setattr(aot, "_STATE", {})
+    assert aot.extension() is None and aot.kernels("range") is None and aot.in_use() == "numba"
     monkeypatch.setattr(aot, "_STATE", {})
     monkeypatch.undo()
     monkeypatch.setenv("MOCAPZ_NO_AOT", "1")

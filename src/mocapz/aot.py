@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import hashlib
 import importlib
+import importlib.util
 import os
 import platform
 from collections.abc import Callable
@@ -118,6 +119,14 @@ def extension() -> ModuleType | None:
             except (ImportError, AttributeError, OSError):
                 pass
     return _STATE["ext"]
+
+
+def in_use() -> str:
+    """Which compiled kernels this process uses where it uses any: ``"ahead of time"`` (the extension),
+    ``"numba"`` (just in time: the extension missing, stale or turned off) or ``"none"`` (no numba: NumPy)."""
+    if extension() is not None:
+        return "ahead of time"
+    return "numba" if importlib.util.find_spec("numba") is not None else "none"
 
 
 class Kernels:
