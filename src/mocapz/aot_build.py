@@ -6,8 +6,9 @@ numba's ``numba.pycc`` (the kernels' own source, numba's compiler, for this mach
     python -m mocapz.aot_build --out DIR  # elsewhere (a directory on the import path as ``mocapz``'s)
     python -m mocapz.aot_build --if-stale # only where the extension mocapz would import is missing or stale
 
-Without numba, or with a numba that no longer has ``numba.pycc``, it says so and exits 0: mocapz then uses the
-just-in-time kernels or the NumPy paths.
+Without numba, with a numba that no longer has ``numba.pycc`` or without a C compiler, it says so on stderr and
+exits 0: mocapz then uses the just-in-time kernels or the NumPy paths (tests/test_aot.py fails where numba has
+``numba.pycc`` and the extension is missing).
 """
 
 from __future__ import annotations
@@ -23,35 +24,18 @@ from mocapz import aot
 
 
 def build(out: Path) -> Path | None:
-    """Compile the extension into ``out``; its path, or None when numba's ahead-of-time compiler is missing."""
-    try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")  # numba.pycc's pending-deprecation notice
-            from numba.pycc import CC
-    except ImportError as exc:
-        print(f"mocapz.aot_build: no ahead-of-time compiler ({exc}); the just-in-time kernels will be used",
-              file=sys.stderr)
-        return None
+    """Compile the extension into ``out``; its path, or None (said on stderr) when it cannot be compiled."""
     name = aot.EXTENSION.rsplit(".", 1)[1]
-    cc = CC(name)
     with tempfile.TemporaryDirectory() as tmp:
-        cc.output_dir = tmp
-        cc.verbose = False
-        cc.target_cpu = "host"
-        seen: dict[tuple[str, str], int] = {}
-        for alias, kernel, sig in aot.SIGNATURES:
-            i = seen[(alias, kernel)] = seen.get((alias, kernel), -1) + 1
-            fn = getattr(importlib.import_module(aot.MODULES[alias]), kernel)
-            cc.export(f"{alias}__{kernel}__{i}", sig)(fn.py_func)
-        value = aot.stamp()
-
-        def stamp() -> int:
-            return value
-
-        cc.export("stamp", "i8()")(stamp)
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            cc.compile()
+        try:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")  # numba.pycc's pending-deprecation notice
+                _compile(name, Path(tmp))
+        except Exception as exc:  # no numba.pycc, no C compiler or linker: the just-in-time kernels then
+            first = str(exc).strip().splitlines()[0] if str(exc).strip() else ""
+            print(f"mocapz.aot_build: the kernels could not be compiled ahead of time ({type(exc).__name__}: "
+                  f"{first}); mocapz will use numba's just-in-time kernels", file=sys.stderr)
+            return None
         built = next(Path(tmp).glob(f"{name}*"))
         out.mkdir(parents=True, exist_ok=True)
         target = out / built.name
@@ -60,6 +44,27 @@ def build(out: Path) -> Path | None:
         part.chmod(0o755)
         part.replace(target)  # whole or not at all
     return target
+
+
+def _compile(name: str, tmp: Path) -> None:
+    from numba.pycc import CC
+
+    cc = CC(name)
+    cc.output_dir = str(tmp)
+    cc.verbose = False
+    cc.target_cpu = "host"
+    seen: dict[tuple[str, str], int] = {}
+    for alias, kernel, sig in aot.SIGNATURES:
+        i = seen[(alias, kernel)] = seen.get((alias, kernel), -1) + 1
+        fn = getattr(importlib.import_module(aot.MODULES[alias]), kernel)
+        cc.export(f"{alias}__{kernel}__{i}", sig)(fn.py_func)
+    value = aot.stamp()
+
+    def stamp() -> int:
+        return value
+
+    cc.export("stamp", "i8()")(stamp)
+    cc.compile()
 
 
 def main(argv: list[str] | None = None) -> int:
