@@ -12,6 +12,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from mocapz.codecs.patterns.gaussian import gaussian_smooth
+
 
 def up_axis(positions: np.ndarray) -> int:
     """The vertical axis: largest median extent of the marker cloud per frame."""
@@ -52,8 +54,7 @@ def measure_yaw(filled: np.ndarray, observed: np.ndarray, root: int, up: int, si
     s = (w * (rx * y - ry * x)).sum(axis=1)
     c = (w * (rx * x + ry * y)).sum(axis=1)
     yaw = np.unwrap(np.arctan2(s, c))
-    from scipy.ndimage import gaussian_filter1d  # noqa: I001 (on use: scipy loads slowly)
-    return gaussian_filter1d(yaw, sigma, mode="nearest") if sigma > 0 else yaw
+    return gaussian_smooth(yaw, sigma) if sigma > 0 else yaw
 
 
 def rotate(vectors: np.ndarray, yaw: np.ndarray, up: int, inverse: bool = False) -> np.ndarray:

@@ -1,8 +1,8 @@
 """Adaptive K-means pattern extraction (paper §III.C).
 
 Normalised segments are vectors ``x_j`` (``L`` frames x members x 3 values). Clustering starts with an
-initial ``K`` (scipy ``kmeans2``, k-means++ seeds, fixed seed) and grows ``K`` until the error criterion
-holds: MaxError (eq. 2, every segment within ``tol`` of its cluster mean) or AveError (eq. 1, mean squared
+initial ``K`` (scipy's ``kmeans2``, :mod:`.lloyd`: k-means++ seeds, fixed seed) and grows ``K`` until the error
+criterion holds: MaxError (eq. 2, every segment within ``tol`` of its cluster mean) or AveError (eq. 1, mean squared
 error at most ``tol**2``). ``K`` grows without re-clustering from scratch: only the clusters that break the
 bound are split in two (2-means inside the cluster), so the time stays near-linear in the data.
 
@@ -13,10 +13,11 @@ values per member (3). The cluster means form the node's pattern database.
 
 from __future__ import annotations
 
-import warnings
 from dataclasses import dataclass
 
 import numpy as np
+
+from mocapz.codecs.patterns.lloyd import kmeans_pp
 
 MAX = "max"
 AVE = "ave"
@@ -131,14 +132,11 @@ def _impute(x: np.ndarray, o: np.ndarray) -> np.ndarray:
 
 
 def _initial(x: np.ndarray, k: int, seed: int) -> np.ndarray:
-    """Labels of an initial ``k``-means clustering (scipy ``kmeans2``, k-means++ seeds from ``seed``)."""
+    """Labels of an initial ``k``-means clustering (:func:`.lloyd.kmeans_pp`: scipy's ``kmeans2``, k-means++ seeds
+    from ``seed``)."""
     if k <= 1:
         return np.zeros(len(x), dtype=np.int64)
-    from scipy.cluster.vq import kmeans2
-
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        _, lab = kmeans2(x, k, iter=ITERATIONS, minit="++", rng=np.random.default_rng(seed), check_finite=False)
+    lab = kmeans_pp(x, k, ITERATIONS, np.random.default_rng(seed))
     _, lab = np.unique(lab, return_inverse=True)
     return lab.astype(np.int64)
 

@@ -18,6 +18,7 @@ import struct
 
 import numpy as np
 
+from mocapz.codecs.patterns.gaussian import gaussian_smooth
 from mocapz.errors import FormatError
 from mocapz.format.entropy import (
     decode_int_matrix,
@@ -73,8 +74,7 @@ def _reconstruct(sym: np.ndarray, step: float, sigma: float = 0.0) -> np.ndarray
     flat = np.cumsum(sym.reshape(k * length, d), axis=0)  # grid indices, pattern after pattern
     out = flat.reshape(k, length, d) * step
     if sigma > 0 and length > 2:
-        from scipy.ndimage import gaussian_filter1d  # noqa: I001 (on use: scipy loads slowly)
-        out = gaussian_filter1d(out, sigma, axis=1, mode="nearest")
+        out = gaussian_smooth(out, sigma, axis=1)
     return out
 
 
