@@ -37,6 +37,10 @@ from pathlib import Path
 from typing import Any
 
 ROOT = Path(__file__).resolve().parents[1]
+LOADING = {"ahead of time": "the kernels compiled ahead of time: nothing to load",
+           "numba": "numba's just-in-time kernels, about 100 MB, are loaded once a process has coded or decoded "
+                    "enough to pay for them",
+           "none": "no compiled kernels: the NumPy paths"}
 DATA = ROOT.parent / "shared" / "data"
 OUT = ROOT / "docs" / "benchmarks" / "stream.md"
 SOURCE = "06_13"
@@ -115,6 +119,8 @@ def _mb(v: float | None) -> str:
 
 
 def render(rows: list[dict[str, Any]], command: str) -> str:
+    from mocapz import aot  # noqa: PLC0415
+
     lines = ["# Streaming: latency and memory on an hour-long stream", "",
              f"Written by `{command}` ({time.strftime('%Y-%m-%d')}, a shared 2-core machine, one thread per "
              "codec). See the script's docstring for what is measured.", "",
@@ -134,9 +140,8 @@ def render(rows: list[dict[str, Any]], command: str) -> str:
             f"{100 * (r['stream_bytes_same_frames'] / r['offline_bytes'] - 1):+.1f} % |")
     lines += ["", "Latency is the time a block takes to encode once its last frame is written (the stream's "
               "delay is the block length plus it). Memory stays flat when the end figure equals the "
-              "first-minute one (the lossless decoder loads its compiled kernels, about 100 MB, once it has decoded a "
-              "million values). The last column is the stream of the first frames against "
-              "`mocapz.compress` of the same frames (lossy codecs offline in one block).", ""]
+              f"first-minute one ({LOADING[aot.in_use()]}). The last column is the stream of the first frames "
+              "against `mocapz.compress` of the same frames (lossy codecs offline in one block).", ""]
     return "\n".join(lines)
 
 
