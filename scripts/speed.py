@@ -22,8 +22,8 @@ cost: the size of the 1-s and the 4-s file over the one-block file, minus 1, in 
 process is stopped after ``--time-limit * (4 * --repeat + 6) + 60`` seconds.
 
 A library in one command (with two CMU clips or more): ``mocapz compress CLIPS... -o DIR`` over all the CMU
-clips measured, per codec, serially on one thread (start-up and numba's loading paid once), best of
-``--repeat``.
+clips measured, per codec, serially on one thread (start-up, and numba's loading without the ahead-of-time
+kernels, paid once), best of ``--repeat``.
 
 Usage::
 
@@ -566,7 +566,8 @@ def render(rows: list[dict[str, Any]], codecs: list[str], args: argparse.Namespa
         if library:
             lines += ["### A library in one command", "",
                       "`mocapz compress CLIPS... -o DIR --codec C` over all the CMU clips above in one command (a "
-                      "library compressed serially, on one core: Python's start-up and numba's loading paid once, "
+                      "library compressed serially, on one core: Python's start-up (and numba's loading, without the "
+                      "ahead-of-time kernels) paid once, "
                       "every file read and written), with the same options as the column `mocapz compress`, best "
                       f"of {args.repeat}; frames/s, `xN` over the lossless codec's same command.", ""]
             lines += library_table(cmu, library) + [""]
