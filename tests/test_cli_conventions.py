@@ -14,6 +14,8 @@ from conftest import data_path
 from test_cli import MOCAPZ, RUN, assert_one_line_error, listing
 
 import mocapz
+from mocapz import aot
+from mocapz.cli.main import KERNELS
 from mocapz.codecs import all_codecs, codec_names
 from mocapz.codecs.options import options_markdown
 from mocapz.io.bvh import read_bvh
@@ -99,6 +101,7 @@ def test_stdin_garbage_is_a_clean_error(work: Path) -> None:
 def test_version_and_help() -> None:
     res = text(run("-V"))
     assert res.returncode == 0 and mocapz.__version__ in res.stdout
+    assert f"kernels: {KERNELS[aot.in_use()]}" in res.stdout  # which compiled kernels the commands use
     res = text(run("compress", "--help"))
     assert res.returncode == 0
     for name in codec_names():

@@ -123,7 +123,12 @@ def extension() -> ModuleType | None:
 
 def in_use() -> str:
     """Which compiled kernels this process uses where it uses any: ``"ahead of time"`` (the extension),
-    ``"numba"`` (just in time: the extension missing, stale or turned off) or ``"none"`` (no numba: NumPy)."""
+    ``"numba"`` (just in time: the extension missing, stale or turned off) or ``"none"`` (no numba, or turned off by
+    ``MOCAPZ_NO_NUMBA``: NumPy)."""
+    from mocapz import _jit
+
+    if not _jit.enabled():
+        return "none"
     if extension() is not None:
         return "ahead of time"
     return "numba" if importlib.util.find_spec("numba") is not None else "none"

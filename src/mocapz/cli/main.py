@@ -13,9 +13,25 @@ import click
 from mocapz import __version__
 from mocapz.errors import MocapzError, OptionError
 
+KERNELS = {"ahead of time": "compiled ahead of time",
+           "numba": "numba's, compiled just in time (`make kernels` or `python -m mocapz.aot_build` compiles them "
+                    "ahead of time: about 0.5 s and 100 MB less a command)",
+           "none": "none: the NumPy paths (numba not installed, or MOCAPZ_NO_NUMBA)"}
+
+
+def _print_version(ctx: click.Context, _param: click.Parameter, value: bool) -> None:
+    """``-V``: the version and which compiled kernels the commands use (:func:`mocapz.aot.in_use`)."""
+    if not value or ctx.resilient_parsing:
+        return
+    from mocapz import aot
+
+    click.echo(f"mocapz, version {__version__}\nkernels: {KERNELS[aot.in_use()]}")
+    ctx.exit()
+
 
 @click.group(context_settings={"help_option_names": ["-h", "--help"]})
-@click.version_option(__version__, "-V", "--version", prog_name="mocapz")
+@click.option("-V", "--version", is_flag=True, expose_value=False, is_eager=True, callback=_print_version,
+              help="Show the version and the compiled kernels in use, and exit.")
 def cli() -> None:
     """Compress human motion-capture data (BVH, ASF/AMC, C3D, TRC).
 
