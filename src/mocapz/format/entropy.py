@@ -329,9 +329,9 @@ def _range_kernels(values: int) -> ModuleType | aot.Kernels | None:
         return None
     if "mod" in _KERNELS:
         return _KERNELS["mod"]
-    if aot.kernels("range") is not None:  # compiled ahead of time: nothing to load
-        _KERNELS["mod"] = aot.kernels("range")
-        return _KERNELS["mod"]
+    if (ahead := aot.kernels("range")) is not None:  # compiled ahead of time: nothing to load
+        _KERNELS["mod"] = ahead
+        return ahead
     if ("numba" not in sys.modules and values < LAZY_VALUES) or not _jit.room_to_compile():
         return None
     try:

@@ -59,8 +59,8 @@ def kernels(work: int = 0, force: bool = False) -> ModuleType | aot.Kernels | No
     if not _enabled:
         return None
     _work[0] += work
-    if "mod" not in _state and aot.kernels("lossless") is not None:
-        _state["mod"] = aot.kernels("lossless")  # compiled ahead of time: nothing to load
+    if "mod" not in _state and (ahead := aot.kernels("lossless")) is not None:
+        _state["mod"] = ahead  # compiled ahead of time: nothing to load
     if "mod" not in _state:
         if not (force or "numba" in sys.modules or _work[0] >= LAZY_VALUES):
             return None

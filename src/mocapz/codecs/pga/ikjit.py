@@ -52,8 +52,7 @@ def kernels(frames: int | None = None) -> dict[str, Any] | None:
     global _KERNELS
     if not enabled() or (frames is not None and frames < LAZY_FRAMES and not _STREAM.get()):
         return None
-    if _KERNELS is None and aot.kernels("ik") is not None:  # compiled ahead of time: nothing to load
-        ahead = aot.kernels("ik")
+    if _KERNELS is None and (ahead := aot.kernels("ik")) is not None:  # compiled ahead of time: nothing to load
         _KERNELS = {name: getattr(ahead, name) for name in ("solve_frames", "pose", "euler_channels")}
     if _KERNELS is None:
         try:
