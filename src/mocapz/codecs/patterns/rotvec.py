@@ -4,12 +4,18 @@ The pattern codec's value of a joint with three rotation channels is its local r
 radians; :mod:`.skeletal`). :func:`euler_rotvec` gives what scipy's ``Rotation.from_euler(order.upper(),
 angles).as_rotvec()`` gives (intrinsic rotations, the canonical quaternion's angle in ``[0, pi]``; the same
 numbers to rounding) without scipy's per-call work; :func:`continuous_rotvec` unrolls the angle past ``pi`` as
-the clip turns on, with no Python loop over frames.
+the clip turns on, with no Python loop over frames; :func:`rotvec_euler` turns them back into Euler angles, scipy's
+``Rotation.from_rotvec(rv).as_euler(order.upper())`` to the bit (:mod:`.rotkernels` compiled ahead of time where
+it is built, else scipy itself).
 """
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
+
+from mocapz import _jit, aot
 
 TINY_ANGLE = 1e-3  # below this the rotation vector's scale comes from its series (as scipy's)
 FLIP_NORM = 1e-9  # a rotation vector this short has no direction to unroll along
@@ -83,3 +89,26 @@ def _norms(v: np.ndarray) -> np.ndarray:
     """``(n,)`` lengths of ``(n, 3)`` vectors, each as ``np.linalg.norm`` of the one vector gives it (its dot
     product: the same bits, so the forms chosen are those of a frame-by-frame loop)."""
     return np.sqrt(np.matmul(v[:, None, :], v[:, :, None])[:, 0, 0])
+
+
+def scipy_axes(order: str) -> np.ndarray:
+    """``(3,)`` axis indices (0 x, 1 y, 2 z) of intrinsic rotations about ``order`` in the extrinsic form of
+    scipy's Euler-angle method (the sequence reversed), as :func:`.rotkernels.rotvec_euler` takes them."""
+    return np.array(["XYZ".index(c) for c in order.upper()[::-1]], dtype=np.int64)
+
+
+def rotvec_euler(order: str, rv: np.ndarray) -> np.ndarray:
+    """Euler angles ``(frames, 3)`` radians, intrinsic about the axes of ``order`` (e.g. ``"ZXY"``, any case), of
+    rotation vectors ``rv`` ``(frames, 3)`` radians: scipy's ``Rotation.from_rotvec(rv).as_euler(order.upper())``
+    bit for bit (the ahead-of-time kernel where built and numba not turned off, else scipy; angles in ``[-pi,
+    pi]``, the middle one's range by the sequence, the third angle zero where the rotation is singular)."""
+    rv = np.ascontiguousarray(rv, dtype=np.float64).reshape(-1, 3)
+    kern = aot.kernels("rot") if _jit.enabled() else None
+    if kern is not None:
+        out = np.empty_like(rv)
+        kern.rotvec_euler(rv, scipy_axes(order), False, out)
+        return out
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # scipy's gimbal-lock warning: the third angle zero, as documented
+        from scipy.spatial.transform import Rotation  # noqa: I001 (on use: scipy.spatial loads slowly)
+        return Rotation.from_rotvec(rv).as_euler(order.upper())

@@ -12,13 +12,12 @@ absolutely per frame, like the paper's root marker. The skeleton itself is never
 from __future__ import annotations
 
 import struct
-import warnings
 
 import numpy as np
 
 from mocapz.codecs.gaps import pack_mask, unpack_mask
 from mocapz.codecs.patterns.quantise import decode_trajectory
-from mocapz.codecs.patterns.rotvec import continuous_rotvec, euler_rotvec
+from mocapz.codecs.patterns.rotvec import continuous_rotvec, euler_rotvec, rotvec_euler
 from mocapz.errors import FormatError
 from mocapz.format.entropy import read_uvarint, write_uvarint
 from mocapz.model.skeleton import Skeleton
@@ -177,11 +176,7 @@ class SkeletalFeatures:
         for j in members:
             rc = self.rot_cols[j]
             if len(rc) == 3:
-                rv = x[:, c : c + 3] / self.lever[j]
-                with warnings.catch_warnings():
-                    warnings.simplefilter("ignore")
-                    from scipy.spatial.transform import Rotation  # noqa: I001 (on use: scipy loads slowly)
-                    ang = Rotation.from_rotvec(rv).as_euler(self.sk.rotation_order[j].upper())
+                ang = rotvec_euler(self.sk.rotation_order[j], x[:, c : c + 3] / self.lever[j])
                 out[:, rc] = np.unwrap(ang, axis=0) / self.scale
                 c += 3
             elif rc:
