@@ -90,7 +90,7 @@ data = mocapz.compress(m, codec="patterns")
 mocapz.decompress(data)
 from mocapz import aot
 print(json.dumps({"cluster": "scipy.cluster" in sys.modules, "ndimage": "scipy.ndimage" in sys.modules,
-                  "scipy": any(k.startswith("scipy") for k in sys.modules), "aot": aot.extension() is not None}))
+                  "scipy": any(k.startswith("scipy") for k in sys.modules), "aot": aot.in_use() == "ahead of time"}))
 """
 
 
@@ -100,4 +100,4 @@ def test_a_skeletal_patterns_command_imports_no_scipy_module() -> None:
                          capture_output=True, text=True, timeout=300, check=True)
     got = json.loads(out.stdout.strip().splitlines()[-1])
     assert not got["cluster"] and not got["ndimage"]
-    assert got["scipy"] is not got["aot"]  # scipy.spatial for the rotations exactly where the extension is not built
+    assert got["scipy"] is not got["aot"]  # scipy.spatial for the rotations exactly where the extension is not used
