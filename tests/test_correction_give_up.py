@@ -1,5 +1,5 @@
-"""A base whose correction cannot give the smaller file is given up after its first verification round: the same
-file, without the rounds that would only have confirmed it."""
+"""A base whose correction cannot give the smaller file is given up after its first verification round, or after a
+later one whose integers grew past the bytes: the same file, without the rounds that would only have confirmed it."""
 
 from __future__ import annotations
 
@@ -13,6 +13,7 @@ import mocapz
 from mocapz.codecs.correction import search
 from mocapz.codecs.correction.fit import GAVE_UP, Clip, fit
 from mocapz.codecs.correction.wrap import resolve_target
+from mocapz.format.entropy import encode_int_matrix
 
 
 def test_fit_gives_up_where_its_first_round_reaches_the_bytes() -> None:
@@ -25,6 +26,32 @@ def test_fit_gives_up_where_its_first_round_reaches_the_bytes() -> None:
     assert given_up.size == GAVE_UP and not given_up.sections and math.isinf(given_up.errors.max_error)
     again = fit(clip, clip.zero_base(), e, give_up=10.0 * whole.size)  # far above: coded whole, the same bytes
     assert again.sections == whole.sections
+
+
+def test_fit_gives_up_in_a_later_round_whose_integers_grow_past_the_bytes() -> None:
+    """CMU 02_05's sibling 05_02 (1,124 frames, eight rounds): bytes its first round's integers stay under but its
+    final c.res section reaches are given up on before the rounds end (a base whose rounds go on growing, as the
+    pattern model's on a 10-minute clip: 21 rounds to a file the correction alone beats)."""
+    m = mocapz.load(data_path("cmu/bvh/05_02.bvh"))
+    clip = Clip(m, True)
+    e = resolve_target(m, {}).max_error
+    coded: list[int] = []
+    real = clip.quantise
+
+    def counted(*args: Any, **kw: Any) -> Any:
+        out = real(*args, **kw)
+        coded.append(len(encode_int_matrix(out[0])))
+        return out
+
+    clip.quantise = counted  # type: ignore[method-assign]
+    whole = fit(clip, clip.zero_base(), e)
+    rounds = len(coded)
+    give_up = 0.97 * len(whole.sections["c.res"])
+    assert rounds >= 4 and coded[0] < give_up  # the first round alone does not reach the bytes
+    coded.clear()
+    given_up = fit(clip, clip.zero_base(), e, give_up=give_up)
+    assert given_up.size == GAVE_UP and not given_up.sections
+    assert 1 < len(coded) < rounds  # after a later round, before the last
 
 
 @pytest.mark.slow

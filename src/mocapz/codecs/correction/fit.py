@@ -287,13 +287,19 @@ def fit(clip: Clip, base: np.ndarray, e: float, relax_by: float = bounds.RELAX, 
     del tighter
     if clip.handover(base):
         levels[-1] = np.minimum(levels[-1] + HANDOVER_LEVELS, cap[-1] + JITTER_LEVELS)
-    done = rounds(clip, x, base, t0, levels, cap, bound, depth, feet, e <= clip.smooth_up_to(), give_up)
+    frames = x.shape[0]
+    seek = window.seekable(frames)  # a long clip: its streams laid out for random access (c.head format 3)
+
+    def packed(q: np.ndarray) -> bytes:  # the c.res section of integers q
+        return window.pack_res(q, frames, depth) if seek else lifting.pack(q, frames, depth, clip.prefix_of(base),
+                                                                           lay.group)
+
+    done = rounds(clip, x, base, t0, levels, cap, bound, depth, feet, e <= clip.smooth_up_to(), give_up, packed)
     if clip.chain is not None:
         clip.chain.forget()  # what the rounds shared
     if done is None:
         return Correction({}, GAVE_UP, Errors(math.inf, math.inf, math.inf), e, depth=depth)
     (q, y, pos), jit, settled = done
-    frames = x.shape[0]
     del x, y, cap  # what is left to do needs the positions' figures and the integers only
     errors, added = clip.metric.of_positions(pos), clip.added_energy(pos)
     skated = clip.skate_sums(pos, base)
@@ -301,13 +307,11 @@ def fit(clip: Clip, base: np.ndarray, e: float, relax_by: float = bounds.RELAX, 
                                                          clip.valid, window_steps(clip.motion.frame_rate))
     del pos  # the integers are packed without it (the entropy coders' work space comes on top)
     release_free_memory()  # the rounds' freed arrays, not beside zstd's work space (mmap-ed, level 19)
-    seek = window.seekable(frames)  # a long clip: its streams laid out for random access (c.head format 3)
     sections = {
         "c.codes": pack_uint64(codes.astype(np.uint64)),
         "c.levels": window.pack_levels(levels, frames, depth) if seek
         else encode_int_matrix(np.diff(levels, axis=0, prepend=0)),
-        "c.res": window.pack_res(q, frames, depth) if seek
-        else lifting.pack(q, frames, depth, clip.prefix_of(base), lay.group),
+        "c.res": packed(q),
     }
     size = sum(len(v) + 8 for v in sections.values())
     return Correction(sections, size, errors, e, jit, added, skated, depth, settled, tail)
