@@ -110,16 +110,17 @@ def _coded_nodes(monkeypatch: pytest.MonkeyPatch) -> list[int]:
 
 
 @pytest.mark.parametrize(("name", "frames", "early"), [("cmu/bvh/02_05.bvh", 1855, True),
-                                                        ("cmu/bvh/06_13.bvh", 3000, False),
-                                                        ("cmu/bvh/09_06.bvh", 142, False),
+                                                        ("cmu/bvh/06_13.bvh", 3000, True),
+                                                        ("cmu/bvh/09_06.bvh", 142, True),
                                                         ("cmu/c3d/01_01.c3d", 1200, True)])
 def test_a_model_is_given_up_once_its_bytes_reach_the_correction_alones(name: str, frames: int, early: bool,
                                                                         monkeypatch: pytest.MonkeyPatch) -> None:
     """The patterns model is encoded only as far as it may give the smaller file: where its own sections reach
     what the correction alone codes the clip in, its encoding stops (02_05's model is 2.4 times the correction
-    alone's file: part way through its body parts; 06_13's first 3,000 frames 1.3 times: after the last one,
-    before it is decoded); the file is byte for byte the one of a model encoded whole (the budget off), whichever
-    base wins (09_06's model base is the smaller). A marker clip with gaps (01_01.c3d: its zero base has bytes of
+    alone's file: part way through its body parts; 06_13's first 3,000 frames 1.1 times and 09_06's: after two of
+    their five, whose bytes the other three, each as large as the smaller of those two, would take past it); the
+    file is byte for byte the one of a model encoded whole (the budget off), whichever base wins. A marker clip
+    with gaps (01_01.c3d: its zero base has bytes of
     its own, the gap mask) at effort fast likewise: the depth is given, so the order the bases are tried in
     changes only what is made."""
     from mocapz.codecs import budget
@@ -133,7 +134,7 @@ def test_a_model_is_given_up_once_its_bytes_reach_the_correction_alones(name: st
     spent: list[int] = []
     real = budget.spend
 
-    def unlimited(payloads):  # noqa: ANN001, ANN202
+    def unlimited(payloads, left=0, least=0):  # noqa: ANN001, ANN202, ARG001  (the cap itself, not the estimate)
         try:
             real(payloads)
         except budget.OverBudget as over:
@@ -145,3 +146,20 @@ def test_a_model_is_given_up_once_its_bytes_reach_the_correction_alones(name: st
     model_won = len(whole) <= len(mocapz.compress(m, "quant"))
     assert bool(spent) != model_won  # given up exactly where the correction alone is the smaller
     assert (parts < len(calls)) == early
+
+
+def test_a_budget_gives_up_where_the_parts_left_would_reach_its_cap() -> None:
+    """:func:`budget.spend` raises where the bytes written and the parts left, each as large as the given smallest
+    part, reach the cap; :class:`budget.OverBudget` carries the bytes written (a lower bound), not the estimate;
+    outside :func:`budget.capped` nothing is counted."""
+    from mocapz.codecs import budget
+
+    written = [b"x" * (100 - budget.SECTION_OVERHEAD)]  # 100 bytes as sections count them
+    budget.spend(written, left=1000, least=1000)  # no cap
+    with budget.capped(300):
+        budget.spend(written, left=3, least=66)  # 100 + 198 < 300
+        with pytest.raises(budget.OverBudget) as over:
+            budget.spend(written, left=4, least=50)  # 100 + 200 reaches 300
+        assert over.value.spent == 100
+        with pytest.raises(budget.OverBudget):
+            budget.spend(written * 3)  # 300 written

@@ -4,7 +4,8 @@ The correction layer (:mod:`mocapz.codecs.correction.wrap`) encodes a codec's mo
 it with the correction alone: once the model's own sections reach the bytes the correction alone codes the
 whole clip in, the model cannot give the smaller file. It sets that cap with :func:`capped`; an encoder that
 codes its sections in parts reports the bytes it has written with :func:`spend` after each part, which raises
-:class:`OverBudget` at the cap. Outside :func:`capped` the budget is unlimited and :func:`spend` does nothing:
+:class:`OverBudget` at the cap (or where the parts left, each as large as the smallest so far, would reach it).
+Outside :func:`capped` the budget is unlimited and :func:`spend` does nothing:
 an encoder's output never depends on it (it only stops, or not).
 """
 
@@ -44,11 +45,13 @@ def capped(cap: float) -> Iterator[None]:
         _CAP.reset(token)
 
 
-def spend(payloads: Iterable[bytes]) -> None:
+def spend(payloads: Iterable[bytes], left: int = 0, least: int = 0) -> None:
     """Raise :class:`OverBudget` if the sections written so far (``payloads``, a part of the encoding's) reach
-    the cap."""
+    the cap, or would with the ``left`` parts still to code each taking ``least`` bytes (an encoder coding its
+    sections in parts of like size passes the fewest bytes a part took so far: a model whose parts could not all
+    fit stops after two or three of them, not after the one that reaches the cap)."""
     cap = _CAP.get()
     if math.isfinite(cap):
         spent = section_bytes(payloads)
-        if spent >= cap:
+        if spent + max(left, 0) * max(least, 0) >= cap:
             raise OverBudget(spent)
