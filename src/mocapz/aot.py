@@ -39,6 +39,7 @@ MODULES = {
     "round": "mocapz.codecs.correction.roundkernels",
     "chain": "mocapz.codecs.correction.chainkernels",
     "rot": "mocapz.codecs.patterns.rotkernels",
+    "fk": "mocapz.model.fkkernels",
 }
 #: modules whose constants the kernels compile in (their source is part of the stamp too)
 CONSTANTS = ("mocapz.codecs.pga.ik", "mocapz.codecs.lossless.status")
@@ -76,6 +77,9 @@ SIGNATURES: tuple[tuple[str, str, str], ...] = (
     ("chain", "compose",
      "none(f8[:, :, ::1], f8[:, :, ::1], i8, f8[:, ::1], f8, i8[::1], f8[:, ::1], b1, i8[::1])"),
     ("rot", "rotvec_euler", "i8(f8[:, ::1], i8[::1], b1, f8[:, ::1])"),
+    ("fk", "forward",
+     "none(f8[:, ::1], f8, i8[::1], i8[:, ::1], i8[:, ::1], i8[::1], b1[::1], f8[:, :, ::1], i8[:, ::1], f8[:, ::1], "
+     "i8[::1], f8[:, ::1], f8[:, :, ::1], f8[:, :, :, ::1], b1)"),
 )
 _DTYPES = {"f8": np.dtype(np.float64), "i8": np.dtype(np.int64), "u8": np.dtype(np.uint64),
            "u4": np.dtype(np.uint32), "u1": np.dtype(np.uint8), "b1": np.dtype(np.bool_)}

@@ -1,9 +1,13 @@
-"""Batched forward kinematics: all frames at once, one vectorised step per joint."""
+"""Batched forward kinematics: all frames at once, one vectorised step per joint (or, where the kernels compiled
+ahead of time are built, :mod:`.fkkernels`: the same numbers, to the bit, a frame at a time in one call)."""
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
+from mocapz import _jit, aot
 from mocapz.model.skeleton import Skeleton
 
 POSITION_CHUNK = 1024  # frames whose rotations :func:`forward_positions` (and whose temporaries
@@ -105,6 +109,11 @@ def forward_kinematics(skeleton: Skeleton, channels: np.ndarray) -> tuple[np.nda
         global rotations ``(frames, joints, 3, 3)``.
     """
     channels = np.asarray(channels, dtype=np.float64)
+    if (kern := _kernel()) is not None:
+        pos = np.empty((channels.shape[0], skeleton.n_points, 3))
+        rot = np.empty((channels.shape[0], skeleton.n_joints, 3, 3))
+        kern.forward(np.ascontiguousarray(channels), *_tables(skeleton), pos, rot, True)
+        return pos, rot
     rot = local_rotations(skeleton, channels)
     trans = local_translations(skeleton, channels)
     return chain(skeleton, rot, trans)
@@ -117,6 +126,11 @@ def forward_positions(skeleton: Skeleton, channels: np.ndarray, chunk: int = POS
     memory)."""
     channels = np.asarray(channels, dtype=np.float64)
     frames = channels.shape[0]
+    if (kern := _kernel()) is not None:  # a frame at a time: 9 floats of rotations per joint, whatever the length
+        pos = np.empty((frames, skeleton.n_points, 3))
+        kern.forward(np.ascontiguousarray(channels), *_tables(skeleton), pos,
+                     np.empty((1, skeleton.n_joints, 3, 3)), False)
+        return pos
     if frames <= chunk:
         return forward_kinematics(skeleton, channels)[0]
     out = np.empty((frames, skeleton.n_points, 3))
@@ -141,3 +155,35 @@ def chain(skeleton: Skeleton, rot: np.ndarray, trans: np.ndarray) -> tuple[np.nd
     for e, (j, off, _) in enumerate(skeleton.end_sites):
         pos[:, n + e] = pos[:, j] + g_rot[:, j] @ np.asarray(off)
     return pos, g_rot
+
+
+def _kernel() -> Any:
+    """The compiled forward kinematics (:mod:`.fkkernels`) from the extension built ahead of time, or None (no
+    extension, or numba turned off: NumPy's path, the same numbers)."""
+    return aot.kernels("fk") if _jit.enabled() else None
+
+
+def _tables(skeleton: Skeleton) -> tuple[Any, ...]:
+    """:func:`.fkkernels.forward`'s arguments after the channels, from ``scale`` to ``end_off``."""
+    n = skeleton.n_joints
+    rot_cols, rot_axes = np.zeros((n, 3), dtype=np.int64), np.zeros((n, 3), dtype=np.int64)
+    n_rot = np.zeros(n, dtype=np.int64)
+    pos_cols = np.full((n, 3), -1, dtype=np.int64)
+    for j, (sl, chs, order) in enumerate(
+        zip(skeleton.channel_slices(), skeleton.channels, skeleton.rotation_order, strict=True)
+    ):
+        n_rot[j] = len(order)
+        for k, a in enumerate(order):
+            rot_cols[j, k] = sl.start + chs.index(f"{a}rotation")
+            rot_axes[j, k] = "XYZ".index(a.upper())
+        for k, c in enumerate(chs):
+            if c.endswith("position"):
+                pos_cols[j, "XYZ".index(c[0])] = sl.start + k
+    assert skeleton.axis is not None
+    axis = np.ascontiguousarray(skeleton.axis, dtype=np.float64)
+    turned = np.array([not np.array_equal(axis[j], np.eye(3)) for j in range(n)], dtype=np.bool_)
+    ends = skeleton.end_sites
+    return (np.pi / 180.0 if skeleton.angle_unit == "deg" else 1.0, np.asarray(skeleton.parents, dtype=np.int64),
+            rot_cols, rot_axes, n_rot, turned, axis, pos_cols, np.ascontiguousarray(skeleton.offsets, dtype=np.float64),
+            np.array([j for j, _, _ in ends], dtype=np.int64),
+            np.array([o for _, o, _ in ends], dtype=np.float64).reshape(len(ends), 3))
