@@ -88,3 +88,24 @@ def test_kinematics_takes_the_extension_with_the_same_numbers() -> None:
         _jit.set_enabled(before)
     assert np.array_equal(_bits(got[0][0]), _bits(want[0])) and np.array_equal(_bits(got[0][1]), _bits(want[1]))
     assert np.array_equal(_bits(got[1]), _bits(want[0]))
+
+
+def test_the_kernel_gives_numpys_bits_on_an_odd_skeleton(numpy_path: None) -> None:  # noqa: ARG001
+    """Channels in any order with positions on a non-root joint, a repeated axis (ZXZ), one-axis and two-axis
+    joints, a joint without channels, an end site on the root, radians."""
+    from mocapz.model.skeleton import Skeleton
+
+    rng = np.random.default_rng(3)
+    sk = Skeleton(names=["root", "a", "b", "c", "d"], parents=np.array([-1, 0, 1, 1, 3]),
+                  offsets=rng.normal(size=(5, 3)) * 10,
+                  channels=[("Yposition", "Xrotation", "Xposition", "Zrotation", "Zposition", "Yrotation"),
+                            ("Zrotation", "Xrotation", "Zrotation"), ("Yrotation",), (),
+                            ("Xposition", "Yrotation", "Xrotation")],
+                  rotation_order=["XZY", "ZXZ", "Y", "", "YX"],
+                  end_sites=[(2, rng.normal(size=3), "e1"), (4, rng.normal(size=3), "e2"),
+                             (0, rng.normal(size=3), "e3")], angle_unit="rad")
+    ch = rng.uniform(-9.0, 9.0, size=(500, sk.n_channels))
+    want_pos, want_rot = kinematics.forward_kinematics(sk, ch)
+    pos, rot, alone = _kernel(sk, ch)
+    assert np.array_equal(_bits(pos), _bits(want_pos)) and np.array_equal(_bits(rot), _bits(want_rot))
+    assert np.array_equal(_bits(alone), _bits(want_pos))
