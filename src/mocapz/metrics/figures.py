@@ -10,9 +10,11 @@ from __future__ import annotations
 import warnings
 from collections.abc import Iterator
 from dataclasses import asdict, dataclass
+from typing import Any
 
 import numpy as np
 
+from mocapz import _jit, aot
 from mocapz.errors import MocapzError
 from mocapz.metrics.chunks import CHUNK_FRAMES, frame_chunks  # noqa: F401 (re-exported)
 from mocapz.metrics.contacts import find_contacts, foot_points, up_axis  # noqa: F401 (re-exported)
@@ -125,9 +127,20 @@ def point_errors(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Euclidean error per frame and point, ``(frames, points)``, of positions ``a`` and ``b`` ``(frames, points,
     3)``; :data:`CHUNK_FRAMES` frames at a time (the same numbers, without a whole clip's difference)."""
     out = np.empty(a.shape[:-1])
+    if (kern := _err_kernel(a, b)) is not None:  # compiled ahead of time: the same numbers in one pass
+        kern.point_errors(a, b, out)
+        return out
     for part in frame_chunks(a.shape[0]):
         out[part] = np.linalg.norm(a[part] - b[part], axis=-1)
     return out
+
+
+def _err_kernel(a: np.ndarray, b: np.ndarray) -> Any:
+    """:mod:`.errkernels` from the extension built ahead of time, for float64 positions of one shape; else None."""
+    if not (type(a) is np.ndarray and type(b) is np.ndarray and a.dtype == b.dtype == np.float64
+            and a.shape == b.shape and a.ndim == 3 and a.shape[-1] == 3 and _jit.enabled()):
+        return None
+    return aot.kernels("err")
 
 
 def arms(err: np.ndarray, valid: np.ndarray) -> float:
