@@ -47,6 +47,14 @@ def _kernel(sk: mocapz.Skeleton, ch: np.ndarray) -> tuple[np.ndarray, np.ndarray
     return pos, rot, alone
 
 
+def _local(sk: mocapz.Skeleton, ch: np.ndarray) -> np.ndarray:
+    """The just-in-time kernel's local rotations (:func:`kinematics.local_rotations`)."""
+    out = np.empty((ch.shape[0], sk.n_joints, 3, 3))
+    scale, _, rot_cols, rot_axes, n_rot, turned, axis = kinematics._tables(sk)[:7]
+    fkkernels.local(np.ascontiguousarray(ch, dtype=np.float64), scale, rot_cols, rot_axes, n_rot, turned, axis, out)
+    return out
+
+
 @pytest.mark.parametrize("rel", FILES)
 def test_the_kernel_gives_numpys_bits_on_real_skeletons(rel: str, numpy_path: None) -> None:  # noqa: ARG001
     m = mocapz.load(data_path(rel))
@@ -55,6 +63,8 @@ def test_the_kernel_gives_numpys_bits_on_real_skeletons(rel: str, numpy_path: No
     assert np.array_equal(_bits(pos), _bits(want_pos)) and np.array_equal(_bits(rot), _bits(want_rot))
     assert np.array_equal(_bits(alone), _bits(want_pos))
     assert np.array_equal(_bits(kinematics.forward_positions(m.skeleton, m.channels)), _bits(want_pos))
+    assert np.array_equal(_bits(_local(m.skeleton, m.channels)), _bits(kinematics.local_rotations(m.skeleton,
+                                                                                                   m.channels)))
 
 
 def test_the_kernel_gives_numpys_bits_on_wide_angles_and_gaps(numpy_path: None) -> None:  # noqa: ARG001
@@ -109,3 +119,4 @@ def test_the_kernel_gives_numpys_bits_on_an_odd_skeleton(numpy_path: None) -> No
     pos, rot, alone = _kernel(sk, ch)
     assert np.array_equal(_bits(pos), _bits(want_pos)) and np.array_equal(_bits(rot), _bits(want_rot))
     assert np.array_equal(_bits(alone), _bits(want_pos))
+    assert np.array_equal(_bits(_local(sk, ch)), _bits(kinematics.local_rotations(sk, ch)))

@@ -81,6 +81,7 @@ SIGNATURES: tuple[tuple[str, str, str], ...] = (
     ("fk", "forward",
      "none(f8[:, ::1], f8, i8[::1], i8[:, ::1], i8[:, ::1], i8[::1], b1[::1], f8[:, :, ::1], i8[:, ::1], f8[:, ::1], "
      "i8[::1], f8[:, ::1], f8[:, :, ::1], f8[:, :, :, ::1], b1)"),
+    ("fk", "local", "none(f8[:, ::1], f8, i8[:, ::1], i8[:, ::1], i8[::1], b1[::1], f8[:, :, ::1], f8[:, :, :, ::1])"),
     ("err", "point_errors",
      "none(Array(f8, 3, 'A', readonly=True), Array(f8, 3, 'A', readonly=True), f8[:, ::1])"),
 )

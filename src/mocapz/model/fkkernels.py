@@ -109,3 +109,13 @@ def forward(channels, scale: float, parents, rot_cols, rot_axes, n_rot, turned, 
             for a in range(3):
                 pos[f, n + e, a] = pos[f, j, a] + fma(g[j, a, 2], end_off[e, 2],
                                                       fma(g[j, a, 0], end_off[e, 0], g[j, a, 1] * end_off[e, 1]))
+
+
+@jit
+def local(channels, scale: float, rot_cols, rot_axes, n_rot, turned, axis, out) -> None:
+    """The local rotations ``out`` ``(frames, joints, 3, 3)`` alone (:func:`~.kinematics.local_rotations`), the
+    arguments as :func:`forward`'s."""
+    tmp = np.empty((3, 3))
+    for f in range(channels.shape[0]):
+        for j in range(n_rot.size):
+            _local(channels, f, j, scale, rot_cols, rot_axes, n_rot, turned, axis, out[f, j], tmp)

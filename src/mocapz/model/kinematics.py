@@ -63,6 +63,12 @@ def local_rotations(skeleton: Skeleton, channels: np.ndarray) -> np.ndarray:
     """Local rotation matrices ``(frames, joints, 3, 3)`` from channel values ``(frames, channels)``: the joints
     of one rotation order in one vectorised step."""
     frames = channels.shape[0]
+    if (kern := _kernel()) is not None and np.asarray(channels).dtype == np.float64:
+        out = np.empty((frames, skeleton.n_joints, 3, 3))
+        scale, _, rot_cols, rot_axes, n_rot, turned, axis_t = _tables(skeleton)[:7]
+        kern.local(np.ascontiguousarray(channels, dtype=np.float64), scale, rot_cols, rot_axes, n_rot, turned, axis_t,
+                   out)
+        return out
     out = np.broadcast_to(np.eye(3), (frames, skeleton.n_joints, 3, 3)).copy()
     scale = np.pi / 180.0 if skeleton.angle_unit == "deg" else 1.0
     axis = skeleton.axis
