@@ -57,3 +57,27 @@ def test_table_bits_equal_computed_bits() -> None:
             hist = entropy._histogram(blk)
             computed = entropy._candidate_bits(hist, 2.0 ** ((codes - float(bias)) / steps))
             assert np.array_equal(entropy.code_bits(hist, codes, steps, bias), computed), (trial, steps)
+
+
+@pytest.mark.parametrize("search_bits", [1, 5000, entropy_costs.SEARCH_BITS])
+def test_blocks_costed_together_pick_each_blocks_codes(search_bits: int, monkeypatch: pytest.MonkeyPatch) -> None:
+    """:func:`entropy_costs.scale_codes` costs whole blocks of small values together (their histograms padded to
+    the largest value of the batch) and the candidates of a block of larger values together: the codes of each
+    block costed alone, whatever the batch (``SEARCH_BITS``), on synthetic matrices (blocks of large values among
+    small ones, a partial last block) and a real clip's correction integers."""
+    rng = np.random.default_rng(8)
+    mixed = np.round(rng.laplace(0, 1.5, (1300, 17))).astype(np.int64)
+    mixed[600:620, 3] = 700  # one whole block with values beyond the table, and the partial last one
+    mixed[-5:, :2] = -90
+    m = mocapz.load(data_path("cmu/bvh/02_05.bvh")).slice(0, 700)
+    real = entropy.decode_int_matrix(entropy.encode_int_matrix(np.diff(np.round(m.channels * 100), axis=0)
+                                                               .astype(np.int64)))
+    monkeypatch.setattr(entropy_costs, "SEARCH_BITS", search_bits)
+    for v in [*_matrices(), mixed, real]:
+        for steps, bias, offsets, top in ((4, entropy.QUARTER_BIAS, range(-4, 13), entropy.QUARTER_TOP),
+                                          (8, 64, range(-8, 25, 2), 255)):
+            got = entropy_costs.scale_codes(v, entropy.BLOCK, steps, bias, offsets, top)
+            off = np.asarray(offsets, dtype=np.float64)
+            alone = [entropy_costs._block_codes(v[b:b + entropy.BLOCK], v.shape[1], steps, bias, off, top)
+                     for b in range(0, max(len(v), 1), entropy.BLOCK)]
+            assert np.array_equal(got, np.array(alone).reshape(got.shape)), (v.shape, steps)

@@ -24,6 +24,7 @@ from mocapz.format.entropy_costs import (  # noqa: F401  (re-exported: the scale
     _histogram,
     _laplace_bits,
     code_bits,
+    scale_codes,
 )
 from mocapz.format.planes import (  # noqa: F401  (re-exported: the integer streams' public helpers)
     MAX_COUNT,
@@ -86,24 +87,8 @@ def _quarter_scales(values: np.ndarray) -> np.ndarray:
 
 
 def _scale_codes(values: np.ndarray, steps: int, bias: int, offsets: range, top: int) -> np.ndarray:
-    """Quantised Laplace scale codes ``(blocks, columns)`` int64 (``s = 2 ** ((q - bias) / steps)``, ``0 <= q <=
-    top``): per block of :data:`BLOCK` rows and column, of the codes ``offsets`` away from the one of the mean
-    absolute value, the one under which the block's values cost the fewest bits. Sparse columns (mostly zeros,
-    a few larger values) cost less with a wider scale than their mean suggests."""
-    rows, cols = values.shape
-    nb = max(1, -(-rows // BLOCK))
-    q = np.zeros((nb, cols), dtype=np.int64)
-    for b in range(nb):
-        blk = np.abs(values[b * BLOCK : (b + 1) * BLOCK]).astype(np.float64)
-        m = np.maximum(blk.mean(axis=0) if blk.size else np.zeros(cols), 2.0**-6)
-        guess = np.round(np.log2(m) * steps) + bias
-        if not blk.size:
-            q[b] = np.clip(guess, 0, top)
-            continue
-        codes = np.clip(guess[None, :] + np.asarray(offsets, dtype=np.float64)[:, None], 0, top)  # (offsets, cols)
-        cost = code_bits(_histogram(blk), codes, steps, bias)
-        q[b] = codes[np.argmin(cost, axis=0), np.arange(cols)]  # the first of the cheapest, in offsets' order
-    return q
+    """:func:`~.entropy_costs.scale_codes` per block of :data:`BLOCK` rows."""
+    return scale_codes(values, BLOCK, steps, bias, offsets, top)
 
 
 def _block_scale(q: np.ndarray, steps: int = SCALE_STEPS, bias: int = 64) -> np.ndarray:

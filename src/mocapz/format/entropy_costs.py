@@ -8,6 +8,66 @@ import numpy as np
 
 HIST_VALUES = 64  # a scale search over blocks whose absolute values are all below this works on their histogram
 BIG_SHARE = 8  # a block with more than 1/BIG_SHARE of its values beyond the bits table computes them all
+SEARCH_BITS = 1 << 20  # the bits :func:`scale_codes` costs at once (blocks x candidates x values x columns: 8 MB)
+
+
+def scale_codes(values: np.ndarray, block: int, steps: int, bias: int, offsets: range, top: int) -> np.ndarray:
+    """Quantised Laplace scale codes ``(blocks, columns)`` int64 (``s = 2 ** ((q - bias) / steps)``, ``0 <= q <=
+    top``): per block of ``block`` rows and column of the integers ``values`` ``(rows, columns)``, of the codes
+    ``offsets`` away from the one of the mean absolute value, the one under which the block's values cost the
+    fewest bits (:func:`code_bits`; the first of the cheapest, in ``offsets``' order). Sparse columns (mostly
+    zeros, a few larger values) cost less with a wider scale than their mean suggests.
+
+    The whole blocks whose values are all below :data:`HIST_VALUES` are costed together, a few at a time, from
+    their histograms (each block's histogram padded with values it does not hold: their bits count zero times,
+    added after the others, so every sum is the one of the block alone); a block of larger values and the last,
+    partial block are costed alone (:func:`_block_codes`): the same codes either way."""
+    rows, cols = values.shape
+    nb = max(1, -(-rows // block))
+    q = np.zeros((nb, cols), dtype=np.int64)
+    off = np.asarray(offsets, dtype=np.float64)
+    whole = rows // block if cols else 0
+    per = max(1, SEARCH_BITS // (off.size * max(HIST_VALUES, 1) * max(cols, 1)))
+    for b0 in range(0, whole, per):
+        b1 = min(whole, b0 + per)
+        a = np.abs(values[b0 * block:b1 * block]).astype(np.float64).reshape(b1 - b0, block, cols)
+        guess = np.round(np.log2(np.maximum(a.mean(axis=1), 2.0**-6)) * steps) + bias  # (blocks, columns)
+        codes = np.clip(guess[:, None, :] + off[None, :, None], 0, top)  # (blocks, candidates, columns)
+        tops = a.max(axis=(1, 2))
+        cost = np.empty(codes.shape)
+        small = np.flatnonzero(tops < HIST_VALUES)
+        if small.size:
+            cost[small] = _histogram_costs(a[small], codes[small], steps, bias)
+        for b in np.flatnonzero(tops >= HIST_VALUES):
+            cost[b] = code_bits((a[b], None), codes[b], steps, bias)
+        q[b0:b1] = np.take_along_axis(codes, np.argmin(cost, axis=1)[:, None, :], axis=1)[:, 0, :]
+    for b in range(whole, nb):
+        q[b] = _block_codes(values[b * block:(b + 1) * block], cols, steps, bias, off, top)
+    return q
+
+
+def _block_codes(values: np.ndarray, cols: int, steps: int, bias: int, off: np.ndarray, top: int) -> np.ndarray:
+    """:func:`scale_codes` of one block ``(rows, columns)`` (none: the code of the smallest mean)."""
+    blk = np.abs(values).astype(np.float64)
+    m = np.maximum(blk.mean(axis=0) if blk.size else np.zeros(cols), 2.0**-6)
+    guess = np.round(np.log2(m) * steps) + bias
+    if not blk.size:
+        return np.clip(guess, 0, top)
+    codes = np.clip(guess[None, :] + off[:, None], 0, top)  # (offsets, cols)
+    cost = code_bits(_histogram(blk), codes, steps, bias)
+    return codes[np.argmin(cost, axis=0), np.arange(cols)]
+
+
+def _histogram_costs(a: np.ndarray, codes: np.ndarray, steps: int, bias: int) -> np.ndarray:
+    """:func:`code_bits` ``(blocks, candidates, columns)`` of blocks of absolute values ``a`` ``(blocks, rows,
+    columns)``, all below :data:`HIST_VALUES`, under their candidate codes ``codes`` ``(blocks, candidates,
+    columns)``: from their histograms ``(blocks, values, columns)`` and the bits table."""
+    nb, _, cols = a.shape
+    k = int(a.max()) + 1
+    at = (np.arange(nb)[:, None, None] * k + a.astype(np.int64)) * cols + np.arange(cols)
+    counts = np.bincount(at.ravel(), minlength=nb * k * cols).reshape(nb, k, cols).astype(np.float64)
+    bits = _bits_table(steps, bias)[codes.astype(np.intp), :k]  # (blocks, candidates, columns, values)
+    return (np.ascontiguousarray(bits.transpose(0, 1, 3, 2)) * counts[:, None]).sum(axis=-2)
 
 
 def _histogram(a: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
@@ -41,10 +101,13 @@ def code_bits(hist: tuple[np.ndarray, np.ndarray | None], codes: np.ndarray, ste
         return _candidate_bits(hist, 2.0 ** ((codes - float(bias)) / steps))
     at = np.where(small, a, 0.0).astype(np.intp)
     out = np.empty(codes.shape)
-    for c in range(codes.shape[0]):
-        bits = table[index[c][None, :], at]
-        bits[big_r, big_c] = _point_bits(a[big_r, big_c], 2.0 ** ((codes[c, big_c] - float(bias)) / steps))
-        out[c] = bits.sum(axis=-2)
+    per = max(1, SEARCH_BITS // max(a.size, 1))  # candidates at once: (candidates, rows, columns) bits
+    for c0 in range(0, codes.shape[0], per):
+        bits = np.take(table.ravel(), index[c0:c0 + per, None, :] * table.shape[1] + at[None])  # table[index, at]
+        if big_r.size:
+            scale = 2.0 ** ((codes[c0:c0 + per, big_c] - float(bias)) / steps)
+            bits[:, big_r, big_c] = _point_bits(a[big_r, big_c][None, :], scale)
+        out[c0:c0 + per] = bits.sum(axis=-2)
     return out
 
 
