@@ -20,6 +20,7 @@ every length is checked before anything is allocated.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
@@ -32,7 +33,7 @@ SEG_ZSTD, SEG_RANGE = 0, 1  # the layouts of :func:`encode_segments`
 RUN_WHOLE, RUN_CHUNKS = 0, 1  # the layouts of :func:`pack_running`
 
 
-def encode_segments(values: np.ndarray, starts: list[int]) -> bytes:
+def encode_segments(values: np.ndarray, starts: Sequence[int]) -> bytes:
     """The bytes of ``values`` ``(rows, columns)`` int cut at the rows ``starts`` (increasing, the first 0; the
     decoder is given the same list): the smaller of the segmented range coding and (for a mostly-zero matrix)
     zstd's byte planes of the whole."""
@@ -48,7 +49,7 @@ def encode_segments(values: np.ndarray, starts: list[int]) -> bytes:
     return ranged
 
 
-def _encode_range(v: np.ndarray, starts: list[int]) -> bytes:
+def _encode_range(v: np.ndarray, starts: Sequence[int]) -> bytes:
     constriction = entropy.constriction
     q, pick = entropy._delta_scales(v)
     enc = constriction.stream.queue.RangeEncoder()
@@ -64,13 +65,14 @@ def _encode_range(v: np.ndarray, starts: list[int]) -> bytes:
     return bytes(out)
 
 
-def decode_segments(data: bytes, shape: tuple[int, int], starts: list[int],
+def decode_segments(data: bytes, shape: tuple[int, int], starts: Sequence[int],
                     wanted: list[int] | None = None, until: int | None = None,
-                    planes: dict[bytes, np.ndarray] | None = None) -> dict[int, np.ndarray]:
+                    kept: dict[bytes, Any] | None = None) -> dict[int, np.ndarray]:
     """Segments of an :func:`encode_segments` stream of a ``shape`` matrix cut at ``starts``: ``{index: rows}``
     for the segment indices ``wanted`` (all by default), the others not decoded (a range-coded stream) or not
-    kept; rows from ``until`` on are not needed (the segments holding them end there). ``planes``: where a
-    zstd-packed stream's unpacked planes are kept by its bytes (a reader's: decompressed once)."""
+    kept; rows from ``until`` on are not needed (the segments holding them end there). ``kept``: where what every
+    window of a stream reads is kept by its bytes (a reader's): a zstd-packed stream's unpacked planes
+    (decompressed once), a range-coded stream's scale model and segment table (read once)."""
     rows, cols = shape
     _check_starts(starts, rows)
     nexts = [*starts[1:], rows]
@@ -87,15 +89,38 @@ def decode_segments(data: bytes, shape: tuple[int, int], starts: list[int],
     if buf[0] == SEG_ZSTD:  # decompressed whole, only the wanted segments' rows unpacked
         if not wanted:
             return {}
-        unpacked = None if planes is None else planes.get(data)
+        unpacked = None if kept is None else kept.get(data)
         if unpacked is None:
             unpacked = entropy.unpack_planes(_zstd_body(bytes(buf[1:]), rows, cols), rows * cols)
-            if planes is not None:
-                planes[data] = unpacked
+            if kept is not None:
+                kept[data] = unpacked
         return dict(zip(wanted, entropy.planes_rows(unpacked, rows, cols, [(starts[i], end(i)) for i in wanted]),
                         strict=True))
     if not entropy.HAVE_CONSTRICTION:
         raise FormatError(None, "this stream was written by the range coder; install 'constriction'")
+    model = None if kept is None else kept.get(data)
+    if model is None:  # a reader's: every segment's place; else those up to the last wanted
+        model = _range_model(buf, rows, cols, len(starts) if kept is not None else (wanted[-1] + 1 if wanted else 0))
+        if kept is not None:
+            kept[data] = model
+    scale, table = model
+    out = {}
+    for i in wanted:
+        esc_at, esc_size, body_at, body_end = table[i]
+        if (body_end - body_at) % 4:
+            raise FormatError(None, "corrupted seekable stream (body)")
+        a, n = starts[i], end(i) - starts[i]
+        dec = entropy.range_decoder(bytes(buf[body_at:body_end]), rows * cols)
+        sym, marks = _guard(lambda dec=dec, a=a, n=n: entropy._decode_values(dec, scale, n, cols, a))
+        out[i] = _unescape(sym, bytes(buf[esc_at:esc_at + esc_size]), marks, complete=n == nexts[i] - a)
+    return out
+
+
+def _range_model(buf: memoryview, rows: int, cols: int, count: int
+                 ) -> tuple[np.ndarray, list[tuple[int, int, int, int]]]:
+    """A range-coded :func:`encode_segments` stream's Laplace scales ``(blocks, columns)`` and the places of its
+    first ``count`` segments: ``(escapes at, escapes size, body at, body end)`` each (their lengths read, their bytes
+    not)."""
     if len(buf) < 2 or buf[1] >= len(entropy.DELTA_SCALES):
         raise FormatError(None, "corrupted seekable stream (scale model)")
     pick = buf[1]
@@ -106,8 +131,8 @@ def decode_segments(data: bytes, shape: tuple[int, int], starts: list[int],
     dec = entropy.range_decoder(head, rows * cols)
     scale = entropy._block_scale(_guard(lambda: entropy._decode_scale_codes(dec, pick, nb, cols)), 4,
                                  entropy.QUARTER_BIAS)
-    out, keep, last = {}, set(wanted), wanted[-1] if wanted else -1
-    for i in range(last + 1):  # the segments before a wanted one: their lengths read, their bytes skipped
+    table = []
+    for _ in range(count):
         esc_size, pos = read_uvarint(buf, pos)
         esc_at = pos
         pos += esc_size
@@ -118,14 +143,8 @@ def decode_segments(data: bytes, shape: tuple[int, int], starts: list[int],
         pos += body_size
         if pos > len(buf):
             raise FormatError(None, "truncated seekable stream")
-        if i in keep:
-            if body_size % 4:
-                raise FormatError(None, "corrupted seekable stream (body)")
-            a, n = starts[i], end(i) - starts[i]
-            dec = entropy.range_decoder(bytes(buf[body_at:pos]), rows * cols)
-            sym, marks = _guard(lambda dec=dec, a=a, n=n: entropy._decode_values(dec, scale, n, cols, a))
-            out[i] = _unescape(sym, bytes(buf[esc_at:esc_at + esc_size]), marks, complete=n == nexts[i] - a)
-    return out
+        table.append((esc_at, esc_size, body_at, pos))
+    return scale, table
 
 
 def _unescape(sym: np.ndarray, esc: bytes, marks: np.ndarray, complete: bool) -> np.ndarray:
@@ -167,9 +186,10 @@ def _take(buf: memoryview, pos: int, size: int) -> bytes:
     return bytes(buf[pos:pos + size])
 
 
-def _check_starts(starts: list[int], rows: int) -> None:
-    if not starts or starts[0] != 0 or any(b <= a for a, b in zip(starts, starts[1:], strict=False)) \
-            or (rows and starts[-1] >= rows):
+def _check_starts(starts: Sequence[int], rows: int) -> None:
+    rising = starts.step > 0 if isinstance(starts, range) else all(b > a for a, b in zip(starts, starts[1:],
+                                                                                            strict=False))
+    if not starts or starts[0] != 0 or not rising or (rows and starts[-1] >= rows):
         raise ValueError(f"segment starts {starts[:4]}... do not cut {rows} rows")
 
 

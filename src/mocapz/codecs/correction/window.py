@@ -19,7 +19,9 @@ side in all. :func:`decode_window` inverse-lifts only those, with the same float
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -46,11 +48,11 @@ def _knot_chunk(depth: int, frames: int) -> int:
     return max(1, SEEK_CHUNK >> plan(frames, depth)[0])
 
 
-def _detail_starts(frames: int, depth: int, split: int, cols: int) -> list[list[int]]:
+def _detail_starts(frames: int, depth: int, split: int, cols: int) -> list[range]:
     """The segment starts of every detail stream of layout ``split``: every :data:`SEGMENT_VALUES` values (a
     seek decodes at most that much before the rows it needs, in a range-coded stream)."""
     step = max(1, -(-SEGMENT_VALUES // max(cols, 1)))
-    return [list(range(0, max(rows, 1), step)) for rows in _detail_rows(frames, depth, split)]
+    return [range(0, max(rows, 1), step) for rows in _detail_rows(frames, depth, split)]
 
 
 def _detail_rows(frames: int, depth: int, split: int) -> list[int]:
@@ -123,15 +125,29 @@ def read_levels(data: bytes, frames: int, groups: int, a: int = 0, b: int | None
                 memo: dict[str, object] | None = None) -> tuple[np.ndarray, np.ndarray]:
     """The largest level on the knots ``(groups,)`` and the levels of frames ``[a, b)`` ``(b - a, groups)``
     (``memo``: :func:`mocapz.format.seekable.read_running`'s)."""
+    top, runs = _level_top(data, groups)
+    return top, _window_levels(runs, frames, groups, a, frames if b is None else b, memo)
+
+
+def _level_top(data: bytes, groups: int) -> tuple[np.ndarray, bytes]:
+    """A ``c.levels``' largest level on the knots ``(groups,)`` and the bytes of its levels' running values."""
     top, pos = [], 0
     for _ in range(groups):
         value, pos = read_uvarint(data, pos)
         top.append(value)
-    lev = read_running(data[pos:], (frames, groups), LEVEL_CHUNK, a, frames if b is None else b, memo)
     top_arr = np.array(top, dtype=np.int64)
-    if (lev.size and (lev.min() < 0 or lev.max() > 60)) or (top_arr.size and top_arr.max() > 60):
+    if top_arr.size and top_arr.max() > 60:
         raise FormatError(None, "corrupted correction levels")
-    return top_arr, lev
+    return top_arr, data[pos:]
+
+
+def _window_levels(runs: bytes, frames: int, groups: int, a: int, b: int, memo: dict[str, object] | None
+                   ) -> np.ndarray:
+    """The levels of frames ``[a, b)`` ``(b - a, groups)`` from their running values' bytes ``runs``."""
+    lev = read_running(runs, (frames, groups), LEVEL_CHUNK, a, b, memo)
+    if lev.size and (lev.min() < 0 or lev.max() > 60):
+        raise FormatError(None, "corrupted correction levels")
+    return lev
 
 
 def reach(frames: int, depth: int, a: int, b: int) -> list[tuple[int, int]]:
@@ -150,23 +166,26 @@ def reach(frames: int, depth: int, a: int, b: int) -> list[tuple[int, int]]:
 class Running:
     """What the windows of one clip's seekable streams share (:func:`open_running`): the largest level on the
     knots ``(groups,)``, the ``c.res`` layout and streams, and what the windows have decoded so far, kept for the
-    next ones (the chunks of the levels' and the knots' running values, the unpacked planes of zstd-packed
-    streams: :func:`mocapz.format.seekable.read_running`'s ``memo``)."""
+    next ones (the chunks of the levels' and the knots' running values: :func:`mocapz.format.seekable.read_running`'s
+    ``memo``; the detail streams' unpacked planes where zstd-packed, their scale model and segment table where range
+    coded: :func:`mocapz.format.seekable.decode_segments`' ``kept``)."""
 
     top: np.ndarray
+    runs: bytes
     split: int
     parts: list[bytes]
     levels: dict[str, object] = field(default_factory=dict)
     knots: dict[str, object] = field(default_factory=dict)
-    planes: dict[bytes, np.ndarray] = field(default_factory=dict)
+    details: dict[bytes, Any] = field(default_factory=dict)
 
 
 def open_running(data: bytes, lev_data: bytes, groups: np.ndarray, frames: int, depth: int) -> Running:
     """:class:`Running` of a seekable ``c.res`` (``data``) and ``c.levels`` (``lev_data``) whose columns' groups
     are ``groups`` ``(columns,)``, nothing decoded yet (a reader keeps it)."""
-    top, _ = read_levels(lev_data, frames, int(groups.max(initial=-1)) + 1, 0, 0)
+    top, runs = _level_top(lev_data, int(groups.max(initial=-1)) + 1)
+    _window_levels(runs, frames, top.size, 0, 0, None)  # its layout checked
     split, parts = _streams(data, frames, depth)
-    return Running(top, split, parts)
+    return Running(top, runs, split, parts)
 
 
 def decode_window(data: bytes, lev_data: bytes, tol_col: np.ndarray, halves: np.ndarray, groups: np.ndarray,
@@ -182,8 +201,11 @@ def decode_window(data: bytes, lev_data: bytes, tol_col: np.ndarray, halves: np.
     ranges = reach(frames, depth, a, b)
     k_lo, k_hi = ranges[lv][0] // span, -(-ranges[lv][1] // span)  # the knots around the coarsest reach
     lo, hi = k_lo * span, k_hi * span  # the window of padded positions worked on
-    top, lev = read_levels(lev_data, frames, int(groups.max(initial=-1)) + 1, min(lo, frames - 1),
-                           min(hi, frames - 1) + 1, None if running is None else running.levels)
+    w0, w1 = min(lo, frames - 1), min(hi, frames - 1) + 1  # the frames whose levels the window reads
+    if running is None:
+        top, lev = read_levels(lev_data, frames, int(groups.max(initial=-1)) + 1, w0, w1)
+    else:
+        top, lev = running.top, _window_levels(running.runs, frames, running.top.size, w0, w1, running.levels)
     split, parts = _streams(data, frames, depth) if running is None else (running.split, running.parts)
     knots = read_running(parts[0], (row_groups(frames, depth)[0], cols), _knot_chunk(depth, frames), k_lo,
                          k_hi + 1, None if running is None else running.knots)
@@ -195,7 +217,7 @@ def decode_window(data: bytes, lev_data: bytes, tol_col: np.ndarray, halves: np.
         r = np.minimum(pos, frames - 1) - min(lo, frames - 1)
         return np.minimum(tol_col[None, :] * halves[lev[r]][:, groups], BIG)
 
-    details = _details(parts[1:], frames, depth, split, cols, ranges, None if running is None else running.planes)
+    details = _details(parts[1:], frames, depth, split, cols, ranges, None if running is None else running.details)
     for level in range(lv - 1, -1, -1):
         h = 1 << level
         t0, t1, q = details[level]
@@ -216,38 +238,45 @@ def decode_window(data: bytes, lev_data: bytes, tol_col: np.ndarray, halves: np.
 
 
 def _details(parts: list[bytes], frames: int, depth: int, split: int, cols: int, ranges: list[tuple[int, int]],
-             planes: dict[bytes, np.ndarray] | None = None) -> dict[int, tuple[int, int, np.ndarray]]:
+             kept: dict[bytes, Any] | None = None) -> dict[int, tuple[int, int, np.ndarray]]:
     """Per level, the first and last sample index ``t`` within its reach and their integers ``(samples,
     columns)``, decoding only the segments holding them."""
-    lv = plan(frames, depth)[0]
-    counts = row_groups(frames, depth)[1:]
-    offsets = np.concatenate([[0], np.cumsum(counts)]).astype(int)
+    lv, counts, offsets, streams, bounds = _detail_plan(frames, depth, split, cols)
     want: list[tuple[int, int, int]] = []  # (level, t0, t1)
     for k, level in enumerate(range(lv - 1, -1, -1)):
         h = 1 << level
         lo, hi = ranges[level]
         t0, t1 = max(0, -(-(lo - h) // (2 * h))), min(counts[k] - 1, (hi - h) // (2 * h))
         want.append((level, t0, t1))
-    streams = _detail_starts(frames, depth, split, cols)
     spans: dict[int, list[tuple[int, int, int]]] = {}  # stream -> (level, first row, stop row) in it
     for k, (level, t0, t1) in enumerate(want):
         if t1 >= t0:
-            s, base = (k, 0) if split == STREAM_A_LEVEL else (0, int(offsets[k]))
+            s, base = (k, 0) if split == STREAM_A_LEVEL else (0, offsets[k])
             spans.setdefault(s, []).append((level, base + t0, base + t1 + 1))
     out = {level: (t0, t1, np.zeros((0, cols), dtype=np.int64)) for level, t0, t1 in want}
     for s, rows_wanted in spans.items():  # each stream decoded once, its segments the levels' rows lie in
-        starts = streams[s]
-        rows = counts[s] if split == STREAM_A_LEVEL else int(offsets[-1])
-        seg_first = np.asarray(starts)
-        seg_stop = np.append(seg_first[1:], rows)
+        starts, (rows, step) = streams[s], bounds[s]
         # the segments each level's rows lie in (those starting before its stop and ending after its first row)
-        per = {level: np.flatnonzero((seg_first < r1) & (seg_stop > r0)).tolist() for level, r0, r1 in rows_wanted}
+        per = {level: list(range(r0 // step, min(len(starts), -(-r1 // step)))) for level, r0, r1 in rows_wanted}
         idx = sorted({j for js in per.values() for j in js})
-        segs = decode_segments(parts[s], (rows, cols), starts, idx, max(r1 for _, _, r1 in rows_wanted), planes)
+        segs = decode_segments(parts[s], (rows, cols), starts, idx, max(r1 for _, _, r1 in rows_wanted), kept)
         for level, r0, r1 in rows_wanted:
             mine = per[level]
-            block = np.concatenate([segs[j] for j in mine])
+            block = segs[mine[0]] if len(mine) == 1 else np.concatenate([segs[j] for j in mine])
             first = starts[mine[0]]
             t0, t1, _ = out[level]
             out[level] = (t0, t1, block[r0 - first:r1 - first])
     return out
+
+
+@functools.lru_cache(maxsize=64)
+def _detail_plan(frames: int, depth: int, split: int, cols: int
+                 ) -> tuple[int, list[int], list[int], list[range], list[tuple[int, int]]]:
+    """What :func:`_details` needs of a clip's shape: the lifting levels, the samples of every detail level, where
+    each level starts in one stream, every stream's segment starts and its rows and segment length."""
+    lv = plan(frames, depth)[0]
+    counts = row_groups(frames, depth)[1:]
+    offsets = [int(o) for o in np.concatenate([[0], np.cumsum(counts)])]
+    streams = _detail_starts(frames, depth, split, cols)
+    rows = counts if split == STREAM_A_LEVEL else [offsets[-1]]
+    return lv, counts, offsets, streams, [(r, s.step) for r, s in zip(rows, streams, strict=True)]

@@ -283,10 +283,10 @@ def apply_window(sections: Sections, header: ClipHeader, start: int, stop: int,
             tol_col = bounds.tol_of(_codes(sections["c.codes"], groups.size))
             running = None if memo is None else window.open_running(sections["c.res"], sections["c.levels"], groups,
                                                                       header.frames, levels)
-            kept = (groups, tol_col, running)
+            kept = (groups, tol_col, running, header.rotation_mask)
             if memo is not None:
                 memo["correction"] = kept
-        groups, tol_col, running = kept
+        groups, tol_col, running, rot = kept
         y = window.decode_window(sections["c.res"], sections["c.levels"], tol_col, HALVES, groups, header.frames,
                                  levels, code / 100.0, start, stop, running)
         part = replace(header, frames=stop - start)
@@ -295,10 +295,10 @@ def apply_window(sections: Sections, header: ClipHeader, start: int, stop: int,
     except KeyError as exc:
         raise FormatError(None, f"corrupted correction (missing section {exc})") from None
     if base is not None:
-        return _add(base, y, part)
+        return _add(base, y, part, rot)
     if not y.any():
         return None  # the full decode's motion tells whether its values keep the source's decimals and quantum
-    return _add(zero_motion(part, None, mask), y, part)
+    return _add(None if header.skeleton is not None else zero_motion(part, None, mask), y, part, rot)
 
 
 def on_model(sections: Sections) -> bool:
@@ -327,13 +327,16 @@ def _codes(data: bytes, cols: int) -> np.ndarray:
     return codes
 
 
-def _add(base_motion: AnyMotion, y: np.ndarray, header: ClipHeader) -> AnyMotion:
+def _add(base_motion: AnyMotion | None, y: np.ndarray, header: ClipHeader, rot: np.ndarray | None = None
+         ) -> AnyMotion:
     """The base motion plus the decoded correction ``y`` ``(frames, columns)`` (rotations wrapped into their
-    period where the correction moved them)."""
-    if not y.any():
+    period where the correction moved them). ``None``: a skeleton's zeros (the motion ``zero_motion(header)``
+    would make, not made: the same sum and motion); ``rot``: ``header.rotation_mask`` where the caller has it."""
+    if base_motion is not None and not y.any():
         return base_motion
-    if isinstance(base_motion, Motion):
-        base, rot = value_matrix(base_motion), header.rotation_mask
+    if base_motion is None or isinstance(base_motion, Motion):
+        base = None if base_motion is None else value_matrix(base_motion)
+        rot = header.rotation_mask if rot is None else rot
         period = header.period
         half = period / 2
         # base + y, then mod(o + half, period) - half where the correction moved a value (only there: a float
@@ -342,13 +345,18 @@ def _add(base_motion: AnyMotion, y: np.ndarray, header: ClipHeader) -> AnyMotion
         for a in range(0, y.shape[0], ROWS):
             o = y[a:a + ROWS]
             moved = (o != 0) & rot
-            np.add(base[a:a + ROWS], o, out=o)
+            np.add(0.0 if base is None else base[a:a + ROWS], o, out=o)
             w = o + half
             outside = moved & ~((w >= 0.0) & (w < period))  # NaN counts as outside
             np.subtract(w, half, out=o, where=moved)
             if outside.any():
                 o[outside] = np.mod(w[outside], period) - half
+        if base_motion is None:
+            assert header.skeleton is not None
+            return Motion(skeleton=header.skeleton, channels=y, frame_rate=float(header.frame_rate), name=header.name,
+                          source_format=header.source_format, metadata=dict(header.metadata))
         return base_motion.with_channels(y)
+    assert base_motion is not None
     out = value_matrix(base_motion) + y
     return base_motion.with_positions(out.reshape(base_motion.positions.shape))
 
