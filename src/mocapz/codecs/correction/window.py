@@ -213,9 +213,7 @@ def decode_window(data: bytes, lev_data: bytes, tol_col: np.ndarray, halves: np.
     kmin = np.minimum(tol_col * halves[top[groups]], BIG)
     y[::span] = knots * (2.0 * level_factor(lv, shrink) * kmin)
 
-    def tol_at(pos: np.ndarray) -> np.ndarray:  # (samples, columns) the capped tolerances at padded positions
-        r = np.minimum(pos, frames - 1) - min(lo, frames - 1)
-        return np.minimum(tol_col[None, :] * halves[lev[r]][:, groups], BIG)
+    tol = np.minimum(tol_col[None, :] * halves[lev][:, groups], BIG)  # (w1 - w0, columns) the capped tolerances
 
     details = _details(parts[1:], frames, depth, split, cols, ranges, None if running is None else running.details)
     for level in range(lv - 1, -1, -1):
@@ -223,18 +221,26 @@ def decode_window(data: bytes, lev_data: bytes, tol_col: np.ndarray, halves: np.
         t0, t1, q = details[level]
         if t1 < t0:
             continue
-        t = np.arange(t0, t1 + 1)
-        i = h + 2 * h * t
         m = len(range(h, n - 1, 2 * h))
         top4 = min(m, (n - 1 - 4 * h) // (2 * h) + 1)
-        left, right = y[i - h - lo], y[i + h - lo]
+        at, count = h + 2 * h * t0 - lo, t1 - t0 + 1  # the samples' rows in y: every 2h from ``at``
+        left, right = _every(y, at - h, 2 * h, count), _every(y, at + h, 2 * h, count)
         pred = 0.5 * (left + right)
-        four = (t >= 1) & (t < top4)
-        if four.any():
-            j = i[four] - lo
-            pred[four] = (9.0 * (left[four] + right[four]) - (y[j - 3 * h] + y[j + 3 * h])) / 16.0
-        y[i - lo] = pred + q * (STEP * level_factor(level, shrink) * tol_at(i))
+        f0, f1 = max(t0, 1) - t0, min(t1, top4 - 1) - t0 + 1  # the 4-point filter's samples (1 <= t < top4)
+        if f1 > f0:
+            far = at + 2 * h * f0
+            pred[f0:f1] = (9.0 * (left[f0:f1] + right[f0:f1])
+                           - (_every(y, far - 3 * h, 2 * h, f1 - f0) + _every(y, far + 3 * h, 2 * h, f1 - f0))) / 16.0
+        rows = np.minimum(h + 2 * h * np.arange(t0, t1 + 1), frames - 1) - w0  # the samples' frames (padding: the last)
+        y[at:at + 2 * h * (count - 1) + 1:2 * h] = pred + q * (STEP * level_factor(level, shrink) * tol[rows])
     return y[a - lo:b - lo]
+
+
+def _every(y: np.ndarray, start: int, step: int, count: int) -> np.ndarray:
+    """Rows ``start, start + step, ...`` (``count`` of them) of ``y``: a view."""
+    if start < 0 or start + step * (count - 1) >= len(y):
+        raise FormatError(None, "corrupted correction window")  # the reach keeps every neighbour inside
+    return y[start:start + step * (count - 1) + 1:step]
 
 
 def _details(parts: list[bytes], frames: int, depth: int, split: int, cols: int, ranges: list[tuple[int, int]],
