@@ -8,7 +8,7 @@ import numpy as np
 
 HIST_VALUES = 64  # a scale search over blocks whose absolute values are all below this works on their histogram
 BIG_SHARE = 8  # a block with more than 1/BIG_SHARE of its values beyond the bits table computes them all
-SEARCH_BITS = 1 << 20  # the bits :func:`scale_codes` costs at once (blocks x candidates x values x columns: 8 MB)
+SEARCH_BITS = 1 << 18  # the bits :func:`scale_codes` costs at once (blocks x candidates x values x columns: 2 MB)
 
 
 def scale_codes(values: np.ndarray, block: int, steps: int, bias: int, offsets: range, top: int) -> np.ndarray:
