@@ -50,3 +50,29 @@ def test_figures_take_the_extension_with_the_same_numbers() -> None:
         _jit.set_enabled(before)
     assert _same(got, want)
     assert figures._err_kernel(a.astype(np.float32), b) is None  # another dtype: NumPy's path
+
+
+@pytest.mark.parametrize("rel", ["cmu/bvh/06_13.bvh", "cmu/asfamc/01_01.amc",
+                                 "other/bvh/bandai_namco/dataset-1_dance-short_normal_001.bvh"])
+def test_the_corrections_levers_are_numpys(rel: str, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The correction's levers (the longest distance from a joint to a point below it, :func:`bounds._levers`) from
+    the compiled ``farthest`` (just in time here, and through the extension where built) are NumPy's norms' maxima
+    to the bit, on real skeletons, with a NaN frame (NaN where NumPy's max gives NaN)."""
+    from mocapz.codecs.correction import bounds
+    from mocapz.model.kinematics import forward_positions
+
+    m = mocapz.load(data_path(rel)).slice(0, 900)
+    pos = forward_positions(m.skeleton, m.channels)
+    below = m.skeleton.below()
+    hurt = pos.copy()
+    hurt[400, 5, 1] = np.nan
+    for p in (pos, hurt):
+        with monkeypatch.context() as mp:
+            mp.setattr(_jit, "_ENABLED", False)
+            want = bounds._levers(p, below)
+        joints, points = np.nonzero(below)
+        far = np.empty(joints.size)
+        errkernels.farthest(p, joints.astype(np.int64), points.astype(np.int64), far)
+        assert _same(np.maximum.reduceat(far, np.flatnonzero(np.diff(joints, prepend=-1))), want[below.any(axis=1)])
+        assert _same(bounds._levers(p, below), want)
+    assert np.isnan(bounds._levers(hurt, below)).any() and not np.isnan(bounds._levers(pos, below)).any()

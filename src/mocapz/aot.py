@@ -84,6 +84,7 @@ SIGNATURES: tuple[tuple[str, str, str], ...] = (
     ("fk", "local", "none(f8[:, ::1], f8, i8[:, ::1], i8[:, ::1], i8[::1], b1[::1], f8[:, :, ::1], f8[:, :, :, ::1])"),
     ("err", "point_errors",
      "none(Array(f8, 3, 'A', readonly=True), Array(f8, 3, 'A', readonly=True), f8[:, ::1])"),
+    ("err", "farthest", "none(Array(f8, 3, 'A', readonly=True), i8[::1], i8[::1], f8[::1])"),
 )
 _DTYPES = {"f8": np.dtype(np.float64), "i8": np.dtype(np.int64), "u8": np.dtype(np.uint64),
            "u4": np.dtype(np.uint32), "u1": np.dtype(np.uint8), "b1": np.dtype(np.bool_)}

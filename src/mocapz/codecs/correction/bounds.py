@@ -25,6 +25,7 @@ from typing import Any
 
 import numpy as np
 
+from mocapz import _jit, aot
 from mocapz.model.motion import AnyMotion, Motion
 
 SAFETY = 0.98  # share of the bound handed out (float rounding, the coarse knots' shared step)
@@ -67,10 +68,7 @@ def layout(motion: AnyMotion, positions: np.ndarray, levers: np.ndarray | None =
     sk = motion.skeleton
     n_j, n_p = sk.n_joints, sk.n_points
     below = sk.below()  # below[a, p]: p strictly below joint a
-    lever = np.zeros(n_j)  # longest distance from a joint to a point below it, over the clip
-    for j in range(n_j):
-        if below[j].any() and len(positions):
-            lever[j] = float(np.linalg.norm(positions[:, below[j]] - positions[:, j : j + 1], axis=2).max())
+    lever = _levers(positions, below)
     if levers is not None:
         lever = np.minimum(lever, levers)
     group = np.concatenate([np.full(len(chs), j) for j, chs in enumerate(sk.channels)]).astype(np.int64) \
@@ -90,6 +88,26 @@ def layout(motion: AnyMotion, positions: np.ndarray, levers: np.ndarray | None =
     acts = np.zeros((n_j, n_p), dtype=bool)
     acts[group] |= acts_col
     return Layout(group, acts, t_safe, moving)
+
+
+def _levers(positions: np.ndarray, below: np.ndarray) -> np.ndarray:
+    """``(joints,)`` the longest distance from each joint to a point below it ``below`` ``(joints, points)`` over
+    the clip's positions ``(frames, points, 3)`` (0 without one): :mod:`mocapz.metrics.errkernels`' ``farthest``
+    where built (no ``(frames, points, 3)`` differences; the same numbers), else NumPy's norms."""
+    lever = np.zeros(below.shape[0])
+    if not len(positions) or not below.any():
+        return lever
+    kern = aot.kernels("err") if _jit.enabled() and positions.dtype == np.float64 else None
+    if kern is None:
+        for j in np.flatnonzero(below.any(axis=1)):
+            lever[j] = float(np.linalg.norm(positions[:, below[j]] - positions[:, j : j + 1], axis=2).max())
+        return lever
+    joints, points = np.nonzero(below)  # by joint
+    far = np.empty(joints.size)
+    kern.farthest(positions, joints.astype(np.int64), points.astype(np.int64), far)
+    firsts = np.flatnonzero(np.diff(joints, prepend=-1))
+    lever[joints[firsts]] = np.maximum.reduceat(far, firsts)
+    return lever
 
 
 def covers(kept: Layout, lay: Layout) -> bool:
