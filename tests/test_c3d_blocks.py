@@ -58,3 +58,23 @@ def test_a_lossy_codec_in_blocks_keeps_the_extras_per_block() -> None:
     data = mocapz.compress(src, "quant", max_error="1cm", block=50)
     part = mocapz.decompress(data, frames=slice(120, 160))
     _same(part, src.slice(120, 160))
+
+
+@pytest.mark.parametrize("rel", FILES[2:])
+def test_a_reader_keeps_one_blocks_extras_and_gives_each_range_its_own(rel: str) -> None:
+    """A C3D clip in one block (the lossy codecs' default) has its extras' words xz-packed whole: a reader decodes
+    them once and gives every range the extras ``decompress(frames=)`` gives (header, parameters, every word),
+    its own copy (a range's arrays changed by the caller change no later range), and the whole clip's as before."""
+    src = mocapz.load(data_path(rel))
+    data = mocapz.compress(src, "quant")
+    assert "c3d.blk" not in Container.from_bytes(data).sections
+    reader = mocapz.open(data)
+    n = src.n_frames
+    for a, b in ((n // 2, n // 2 + 20), (0, 1), (n - 7, n), (n // 2, n // 2 + 20), (5, n - 5)):
+        part = reader[a:b]
+        _same(part, mocapz.decompress(data, frames=slice(a, b)))
+        _same(part, src.slice(a, b))
+        part.metadata["c3d"].analog_words[:] = -1
+        part.metadata["c3d"].residual_words[:] = -1
+    assert "c3d" in reader._memo
+    _same(reader[0:n], src)

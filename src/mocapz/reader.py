@@ -27,7 +27,7 @@ from mocapz.codecs import CodecInfo, get_codec
 from mocapz.errors import FormatError, OptionError
 from mocapz.format import blocks
 from mocapz.format.container import Container
-from mocapz.format.extras import attach, decode_extras, split_sections
+from mocapz.format.extras import BLOCKS, attach, decode_extras, split_sections
 from mocapz.format.layout import decode_header
 from mocapz.format.stream import Stream, is_stream, read_stream
 from mocapz.model.header import ClipHeader
@@ -79,14 +79,21 @@ def decoder_errors(codec: str, path: str | Path | None) -> Iterator[None]:
 
 
 def with_extras(motion: AnyMotion, sections: dict[str, bytes], header: ClipHeader, start: int,
-                 stop: int) -> AnyMotion:
+                stop: int, memo: dict[str, Any] | None = None) -> AnyMotion:
     """Frames ``[start, stop)`` of the clip with its C3D extras of those frames (only the blocks holding them
-    decoded)."""
+    decoded). ``memo``: a reader's, where extras coded in one block (decoded whole whatever the frames: their
+    words are xz-packed whole) are kept once decoded, each range then a copy of its rows."""
     if not sections:
         return motion
     if not isinstance(motion, MarkerMotion):
         raise FormatError(None, "corrupted .mcz file (C3D sections in a skeletal clip)")
-    motion.metadata["c3d"] = decode_extras(sections, header.frames, len(header.labels), start, stop)
+    whole = None
+    if memo is not None and (start, stop) != (0, header.frames) and BLOCKS not in sections:
+        whole = memo.get("c3d")
+        if whole is None:
+            whole = memo["c3d"] = decode_extras(sections, header.frames, len(header.labels))
+    motion.metadata["c3d"] = whole.slice(start, stop) if whole is not None \
+        else decode_extras(sections, header.frames, len(header.labels), start, stop)
     return motion
 
 
@@ -182,15 +189,15 @@ class Reader:
         with decoder_errors(codec, path):
             if self._parts is not None:
                 motion = blocking.decode_spans(self.info.decode, self._parts, self._spans, self.header, start, stop)
-                return with_extras(motion, self._extras, self.header, start, stop)
+                return with_extras(motion, self._extras, self.header, start, stop, self._memo)
             if (start, stop) != (0, self.header.frames) and self.info.decode_window is not None:
                 part = self.info.decode_window(self._sections, self.header, start, stop, memo=self._memo)
                 if part is not None:  # only what the frames need was decoded
-                    return with_extras(part, self._extras, self.header, start, stop)
+                    return with_extras(part, self._extras, self.header, start, stop, self._memo)
             motion = self.info.decode(self._sections, self.header)
             if (start, stop) == (0, self.header.frames):
                 return attach(motion, self._extras)
-            return with_extras(motion.slice(start, stop), self._extras, self.header, start, stop)
+            return with_extras(motion.slice(start, stop), self._extras, self.header, start, stop, self._memo)
 
     def iter_blocks(self, frames: Frames = None) -> Iterator[tuple[int, AnyMotion]]:
         """The frames of ``frames`` (default every frame) block by block, as each is decoded: ``(the number of
