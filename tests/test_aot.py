@@ -89,6 +89,10 @@ def test_arguments_fit_a_variant_as_numba_types_them() -> None:
     assert not aot._fits(ro, aot._spec("f8[:, ::1]"))  # the kernel may write: a read-only array does not fit
     assert not aot._fits(3.0, specs[2]) and not aot._fits(True, specs[2]) and not aot._fits(3, specs[3])
     assert not aot._fits(1, specs[4])
+    c, f = np.zeros((5, 4)), np.zeros((5, 4), order="F")  # column-major variants (the correction's round)
+    assert aot._fits(f, aot._spec("f8[::1, :]")) and not aot._fits(c, aot._spec("f8[::1, :]"))
+    assert aot._fits(c, aot._spec("f8[:, ::1]")) and not aot._fits(f, aot._spec("f8[:, ::1]"))
+    assert not aot._fits(f[::2], aot._spec("f8[::1, :]")) and aot._fits(f[::2], aot._spec("f8[:, :]"))
 
 
 def test_a_call_no_variant_takes_goes_to_the_just_in_time_kernel() -> None:

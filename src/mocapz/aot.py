@@ -6,7 +6,7 @@ The kernels are numba's: the same source (the ``*kernels.py`` modules) compiled 
 for the argument types of :data:`SIGNATURES` and this machine's processor, each a function of the extension named
 ``{alias}__{name}__{i}``. :func:`kernels` gives an alias's functions by name; each call takes the first compiled
 variant its arguments fit exactly (the types numba's just-in-time dispatcher would give them: dtype, dimensions, a
-C-contiguous array where the variant wants one, a writeable one where it may write) and otherwise calls the
+C- or F-contiguous array where the variant wants one, a writeable one where it may write) and otherwise calls the
 just-in-time kernel (numba loaded then): the same code either way, the same bits.
 
 The extension is used only where it was built from the kernels' present source (:func:`stamp`, a hash of their
@@ -68,6 +68,12 @@ SIGNATURES: tuple[tuple[str, str, str], ...] = (
     ("round", "run",
      "none(f8[:, ::1], Array(f8, 2, 'A', readonly=True), f8[::1], i8[::1], i8[:, ::1], i8, f8[::1], i8, i8, "
      "f8[::1], f8, i8, f8[:, ::1], f8[:, ::1], i8[:, ::1], f8[:, :, ::1], f8[:, :, :, ::1], f8[:, :, :, ::1], "
+     "b1[:, ::1], b1[:, ::1], b1, b1[::1], i8[::1], i8[::1], i8[::1], i8[::1], i8[::1], b1[::1], i8[:, ::1], "
+     "b1[::1], i8[:, ::1], i8[:, ::1], i8[:, ::1], f8[:, :, ::1], b1[::1], i8[::1], i8[:, ::1], f8[::1], i8[::1], "
+     "f8[:, :, :, ::1], f8[:, :, ::1], f8[:, ::1], i8[:, ::1], f8[:, ::1], i8[::1], i8[::1], f8, f8, f8)"),
+    ("round", "run",
+     "none(f8[::1, :], Array(f8, 2, 'A', readonly=True), f8[::1], i8[::1], i8[::1, :], i8, f8[::1], i8, i8, "
+     "f8[::1], f8, i8, f8[:, ::1], f8[::1, :], i8[::1, :], f8[:, :, ::1], f8[:, :, :, ::1], f8[:, :, :, ::1], "
      "b1[:, ::1], b1[:, ::1], b1, b1[::1], i8[::1], i8[::1], i8[::1], i8[::1], i8[::1], b1[::1], i8[:, ::1], "
      "b1[::1], i8[:, ::1], i8[:, ::1], i8[:, ::1], f8[:, :, ::1], b1[::1], i8[::1], i8[:, ::1], f8[::1], i8[::1], "
      "f8[:, :, :, ::1], f8[:, :, ::1], f8[:, ::1], i8[:, ::1], f8[:, ::1], i8[::1], i8[::1], f8, f8, f8)"),
@@ -187,8 +193,8 @@ def _dispatcher(alias: str, name: str, options: list[tuple[list[tuple[str, Any]]
 
 
 def _arg_specs(sig: str) -> list[tuple[str, Any]]:
-    """The arguments of a signature string: ``("scalar", code)`` or ``("array", (dtype, ndim, contiguous,
-    writes))``."""
+    """The arguments of a signature string: ``("scalar", code)`` or ``("array", (dtype, ndim, layout, writes))``
+    (layout: ``"C"`` or ``"F"`` where the variant wants a contiguous array, ``""`` for any)."""
     inner = sig[sig.index("(") + 1:sig.rindex(")")]
     out, depth, cur = [], 0, ""
     for ch in inner + ",":
@@ -204,10 +210,12 @@ def _arg_specs(sig: str) -> list[tuple[str, Any]]:
 def _spec(arg: str) -> tuple[str, Any]:
     if arg.startswith("Array("):
         parts = [p.strip() for p in arg[6:-1].split(",")]
-        return "array", (_DTYPES[parts[0]], int(parts[1]), parts[2].strip("'\"") == "C", False)
+        layout = parts[2].strip("'\"")
+        return "array", (_DTYPES[parts[0]], int(parts[1]), layout if layout in "CF" else "", False)
     if "[" in arg:
-        dims = arg[arg.index("[") + 1:-1].split(",")
-        return "array", (_DTYPES[arg[:arg.index("[")]], len(dims), dims[-1].strip() == "::1", True)
+        dims = [d.strip() for d in arg[arg.index("[") + 1:-1].split(",")]
+        layout = "C" if dims[-1] == "::1" else "F" if dims[0] == "::1" else ""
+        return "array", (_DTYPES[arg[:arg.index("[")]], len(dims), layout, True)
     return "scalar", arg
 
 
@@ -218,7 +226,8 @@ def _fits(value: Any, spec: tuple[str, Any]) -> bool:
     if kind == "array":
         dtype, ndim, contiguous, writes = what
         return (type(value) is np.ndarray and value.dtype == dtype and value.ndim == ndim
-                and (not contiguous or value.flags.c_contiguous) and (not writes or value.flags.writeable))
+                and (not contiguous or (value.flags.c_contiguous if contiguous == "C" else value.flags.f_contiguous))
+                and (not writes or value.flags.writeable))
     if what == "f8":
         return type(value) is float or type(value) is np.float64
     if what == "i8":

@@ -125,7 +125,7 @@ def encode_int_matrix(values: np.ndarray, coder: int | None = None) -> bytes:
     finest lifting details, clustered on a few frames) is smaller as zstd-packed byte planes, which the
     encoder then chooses (``coder`` None). Returns a self-describing byte string (shape included).
     """
-    v = np.asarray(values, dtype=np.int64)
+    v = np.ascontiguousarray(values, dtype=np.int64)
     if v.ndim == 1:
         v = v[:, None]
     rows, cols = v.shape

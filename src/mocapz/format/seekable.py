@@ -37,7 +37,7 @@ def encode_segments(values: np.ndarray, starts: Sequence[int]) -> bytes:
     """The bytes of ``values`` ``(rows, columns)`` int cut at the rows ``starts`` (increasing, the first 0; the
     decoder is given the same list): the smaller of the segmented range coding and (for a mostly-zero matrix)
     zstd's byte planes of the whole."""
-    v = np.asarray(values, dtype=np.int64)
+    v = np.ascontiguousarray(values, dtype=np.int64)
     _check_starts(starts, v.shape[0])
     if v.size == 0 or not entropy.HAVE_CONSTRICTION:
         return bytes([SEG_ZSTD]) + encode_int_matrix(v, entropy.CODER_ZSTD)
@@ -206,7 +206,7 @@ def pack_running(values: np.ndarray, chunk: int) -> bytes:
     left out (:func:`encode_segments`, a segment a chunk); or :data:`RUN_WHOLE`, the differences of every row in
     zstd's byte planes, where that is no larger (a mostly-still series: unpacked and summed whole in a fraction
     of a millisecond, it needs no chunks)."""
-    v = np.asarray(values, dtype=np.int64)
+    v = np.ascontiguousarray(values, dtype=np.int64)
     rows, cols = v.shape
     firsts = encode_int_matrix(np.diff(v[::chunk], axis=0, prepend=0))
     inner = np.diff(v, axis=0)  # row r - 1: v[r] - v[r - 1]; the rows of the chunks' first rows left out

@@ -124,7 +124,8 @@ def quantise(chain: Chain, kern: ModuleType, x: np.ndarray, base: np.ndarray, to
     if again and before is not None:
         q, dirty = before[0], (before[1] != tol.levels).any(axis=0)
     else:
-        q, dirty = np.zeros((n, cols), dtype=np.int64), np.ones(tol.levels.shape[1], dtype=np.bool_)
+        q = np.zeros((n, cols), dtype=np.int64, order="F" if x.flags.f_contiguous and cols > 1 else "C")
+        dirty = np.ones(tol.levels.shape[1], dtype=np.bool_)
     pos = np.empty((frames, sk.n_points, 3))
     slots = np.empty((rp.n_slots, frames, 3, 3))
     ends = np.empty((rp.n_ends, frames, 3, 3))

@@ -272,7 +272,7 @@ def fit(clip: Clip, base: np.ndarray, e: float, relax_by: float = bounds.RELAX, 
     meets nothing comes back, no sections."""
     depth = clip.levels if depth is None else depth
     lay = clip.layout
-    x = clip.residual(base)
+    x = np.asfortranarray(clip.residual(base))  # column-major: the rounds work a joint's columns at a time
     t0 = relax_by * lay.t_safe * e
     t0 = np.where(lay.moving, t0, relax_by * bounds.TINY * lay.t_safe * e)
     codes = bounds.code_for(t0)
@@ -283,7 +283,7 @@ def fit(clip: Clip, base: np.ndarray, e: float, relax_by: float = bounds.RELAX, 
     # relaxed, a little tighter on the joints that hold the planted feet (their speed is verified below)
     feet = clip.foot_groups()
     tighter = bounds.groups_moving(lay, clip.held()) & feet[None, :]
-    levels = np.where(tighter, np.maximum(cap - relax + FOOT_START, 0), np.maximum(cap - relax, 0))
+    levels = np.asfortranarray(np.where(tighter, np.maximum(cap - relax + FOOT_START, 0), np.maximum(cap - relax, 0)))
     del tighter
     if clip.handover(base):
         levels[-1] = np.minimum(levels[-1] + HANDOVER_LEVELS, cap[-1] + JITTER_LEVELS)
