@@ -180,8 +180,8 @@ class Clip:
 
     def residual(self, base: np.ndarray) -> np.ndarray:
         """``(frames, columns)`` original minus decoded values (angles wrapped to the nearest turn; 0 where a
-        sample is missing)."""
-        r = self.values - base
+        sample is missing), column-major: the rounds work a joint's columns at a time (:mod:`.chainround`)."""
+        r = np.subtract(self.values, base, out=np.empty(self.values.shape, np.result_type(self.values, base), "F"))
         if self.rot.any():
             half = self.period / 2
             w = r[:, self.rot]
@@ -272,7 +272,7 @@ def fit(clip: Clip, base: np.ndarray, e: float, relax_by: float = bounds.RELAX, 
     meets nothing comes back, no sections."""
     depth = clip.levels if depth is None else depth
     lay = clip.layout
-    x = np.asfortranarray(clip.residual(base))  # column-major: the rounds work a joint's columns at a time
+    x = clip.residual(base)
     t0 = relax_by * lay.t_safe * e
     t0 = np.where(lay.moving, t0, relax_by * bounds.TINY * lay.t_safe * e)
     codes = bounds.code_for(t0)
