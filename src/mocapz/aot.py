@@ -44,6 +44,40 @@ MODULES = {
 }
 #: modules whose constants the kernels compile in (their source is part of the stamp too)
 CONSTANTS = ("mocapz.codecs.pga.ik", "mocapz.codecs.lossless.status")
+
+
+def _args(sig: str) -> list[str]:
+    """The argument types of a signature string, as written (commas inside brackets and ``Array(...)`` kept)."""
+    inner = sig[sig.index("(") + 1:sig.rindex(")")]
+    out, depth, cur = [], 0, ""
+    for ch in inner + ",":
+        if ch == "," and depth == 0:
+            out.append(cur.strip())
+            cur = ""
+            continue
+        depth += 1 if ch in "([" else -1 if ch in ")]" else 0
+        cur += ch
+    return out
+
+
+def _column_major(sig: str, which: tuple[int, ...]) -> str:
+    """``sig`` with its 2-D C-contiguous arguments ``which`` Fortran-contiguous (``T[::1, :]``) instead."""
+    args = [a.replace("[:, ::1]", "[::1, :]") if k in which else a for k, a in enumerate(_args(sig))]
+    return f"{sig[:sig.index('(') + 1]}{', '.join(args)})"
+
+
+#: the correction's whole round (:mod:`mocapz.codecs.correction.roundkernels`); its residual, tolerance levels,
+#: decoded residual and integers (arguments 0, 4, 13, 14) come column-major from the fit (a joint's columns
+#: contiguous), or row-major from other callers: a variant for each
+_ROUND = (
+    "none(f8[:, ::1], Array(f8, 2, 'A', readonly=True), f8[::1], i8[::1], i8[:, ::1], i8, f8[::1], i8, i8, "
+    "f8[::1], f8, i8, f8[:, ::1], f8[:, ::1], i8[:, ::1], f8[:, :, ::1], f8[:, :, :, ::1], f8[:, :, :, ::1], "
+    "b1[:, ::1], b1[:, ::1], b1, b1[::1], i8[::1], i8[::1], i8[::1], i8[::1], i8[::1], b1[::1], i8[:, ::1], "
+    "b1[::1], i8[:, ::1], i8[:, ::1], i8[:, ::1], f8[:, :, ::1], b1[::1], i8[::1], i8[:, ::1], f8[::1], i8[::1], "
+    "f8[:, :, :, ::1], f8[:, :, ::1], f8[:, ::1], i8[:, ::1], f8[:, ::1], i8[::1], i8[::1], f8, f8, f8)")
+ROUND_COLUMN_MAJOR = (0, 4, 13, 14)
+
+
 #: (alias, kernel, numba signature): the argument types the callers give (numba's ``typeof`` of them), as the
 #: just-in-time dispatcher compiles them; ``Array(..., readonly=True)`` is a read-only (or any) array
 SIGNATURES: tuple[tuple[str, str, str], ...] = (
@@ -65,18 +99,8 @@ SIGNATURES: tuple[tuple[str, str, str], ...] = (
     ("lift", "decode_details",
      "none(i8[:, ::1], f8[::1], f8[::1], i8[:, ::1], i8[::1], f8[:, ::1], i8, f8[::1], f8, i8, i8, f8, f8[:, ::1])"),
     ("lift", "rn_levels", "none(i8[:, ::1], f8[:, ::1], i8, i8, f8, i8[:, ::1], f8[:, ::1], i8[::1])"),
-    ("round", "run",
-     "none(f8[:, ::1], Array(f8, 2, 'A', readonly=True), f8[::1], i8[::1], i8[:, ::1], i8, f8[::1], i8, i8, "
-     "f8[::1], f8, i8, f8[:, ::1], f8[:, ::1], i8[:, ::1], f8[:, :, ::1], f8[:, :, :, ::1], f8[:, :, :, ::1], "
-     "b1[:, ::1], b1[:, ::1], b1, b1[::1], i8[::1], i8[::1], i8[::1], i8[::1], i8[::1], b1[::1], i8[:, ::1], "
-     "b1[::1], i8[:, ::1], i8[:, ::1], i8[:, ::1], f8[:, :, ::1], b1[::1], i8[::1], i8[:, ::1], f8[::1], i8[::1], "
-     "f8[:, :, :, ::1], f8[:, :, ::1], f8[:, ::1], i8[:, ::1], f8[:, ::1], i8[::1], i8[::1], f8, f8, f8)"),
-    ("round", "run",
-     "none(f8[::1, :], Array(f8, 2, 'A', readonly=True), f8[::1], i8[::1], i8[::1, :], i8, f8[::1], i8, i8, "
-     "f8[::1], f8, i8, f8[:, ::1], f8[::1, :], i8[::1, :], f8[:, :, ::1], f8[:, :, :, ::1], f8[:, :, :, ::1], "
-     "b1[:, ::1], b1[:, ::1], b1, b1[::1], i8[::1], i8[::1], i8[::1], i8[::1], i8[::1], b1[::1], i8[:, ::1], "
-     "b1[::1], i8[:, ::1], i8[:, ::1], i8[:, ::1], f8[:, :, ::1], b1[::1], i8[::1], i8[:, ::1], f8[::1], i8[::1], "
-     "f8[:, :, :, ::1], f8[:, :, ::1], f8[:, ::1], i8[:, ::1], f8[:, ::1], i8[::1], i8[::1], f8, f8, f8)"),
+    ("round", "run", _ROUND),
+    ("round", "run", _column_major(_ROUND, ROUND_COLUMN_MAJOR)),
     ("chain", "place", "none(f8[:, :, ::1], f8[:, :, :], i8, i8, f8[:, ::1])"),
     ("chain", "goal_angles",
      "none(f8[:, :, ::1], f8[:, :, :], i8, i8, f8[:, :, ::1], f8[:, :, ::1], i8, f8, f8[:, ::1], b1, i8[::1], f8, "
@@ -195,16 +219,7 @@ def _dispatcher(alias: str, name: str, options: list[tuple[list[tuple[str, Any]]
 def _arg_specs(sig: str) -> list[tuple[str, Any]]:
     """The arguments of a signature string: ``("scalar", code)`` or ``("array", (dtype, ndim, layout, writes))``
     (layout: ``"C"`` or ``"F"`` where the variant wants a contiguous array, ``""`` for any)."""
-    inner = sig[sig.index("(") + 1:sig.rindex(")")]
-    out, depth, cur = [], 0, ""
-    for ch in inner + ",":
-        if ch == "," and depth == 0:
-            out.append(_spec(cur.strip()))
-            cur = ""
-            continue
-        depth += 1 if ch in "([" else -1 if ch in ")]" else 0
-        cur += ch
-    return out
+    return [_spec(a) for a in _args(sig)]
 
 
 def _spec(arg: str) -> tuple[str, Any]:
