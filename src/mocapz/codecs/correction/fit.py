@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 import warnings
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -59,12 +60,13 @@ def lifting_levels(frame_rate: float) -> int:
 
 @dataclass
 class Correction:
-    """One coded correction: ``sections`` (``c.*``), its ``size`` in bytes, the figures of the corrected
+    """One coded correction: its sections (``c.*``) and their ``size`` in bytes, the figures of the corrected
     positions, the bound ``e`` it was made for and its added acceleration energy (``jitter``, a fraction). The
-    corrected positions themselves are not kept (a clip's worth of memory per correction)."""
+    corrected positions themselves are not kept (a clip's worth of memory per correction). ``made``: the
+    sections, or what packs them when they are first asked for (:func:`fit`'s ``lazy``: a bound search packs only
+    the correction it keeps, not every one it tries)."""
 
-    sections: dict[str, bytes]
-    size: int
+    made: dict[str, bytes] | Callable[[], dict[str, bytes]]
     errors: Errors
     bound: float
     jitter: float = 0.0
@@ -73,6 +75,19 @@ class Correction:
     depth: int = 0  # lifting levels (knots 2 ** depth frames apart)
     settled: bool = True  # the verification rounds ended before MAX_ROUNDS (False: they ran out, levels high)
     tail: context.Edge | None = None  # a block's: its last frames (:func:`.context.tail`), the next block's edge
+    gave_up: bool = False  # given up (:func:`fit`'s ``give_up``): no sections, :data:`GAVE_UP` bytes
+
+    @property
+    def sections(self) -> dict[str, bytes]:
+        """The ``c.*`` sections (packed now if they were not yet; what packed them is let go)."""
+        if callable(self.made):
+            self.made = self.made()
+        return self.made
+
+    @property
+    def size(self) -> int:
+        """Bytes of the sections, each counted with 8 bytes of its name and length (:data:`GAVE_UP` if given up)."""
+        return GAVE_UP if self.gave_up else sum(len(v) + 8 for v in self.sections.values())
 
 
 class Clip:
@@ -262,7 +277,7 @@ class Clip:
 
 
 def fit(clip: Clip, base: np.ndarray, e: float, relax_by: float = bounds.RELAX, depth: int | None = None,
-        give_up: float = math.inf) -> Correction:
+        give_up: float = math.inf, lazy: bool = False) -> Correction:
     """Code the residual of decoded base values ``(frames, columns)`` so that every point is within ``e``
     (file units), planted feet still and the added jitter small, verified on the corrected positions.
     ``relax_by``: the base tolerances' multiple of the worst-case-safe ones (the verification tightens
@@ -298,7 +313,7 @@ def fit(clip: Clip, base: np.ndarray, e: float, relax_by: float = bounds.RELAX, 
     if clip.chain is not None:
         clip.chain.forget()  # what the rounds shared
     if done is None:
-        return Correction({}, GAVE_UP, Errors(math.inf, math.inf, math.inf), e, depth=depth)
+        return Correction({}, Errors(math.inf, math.inf, math.inf), e, depth=depth, gave_up=True)
     (q, y, pos), jit, settled = done
     del x, y, cap  # what is left to do needs the positions' figures and the integers only
     errors, added = clip.metric.of_positions(pos), clip.added_energy(pos)
@@ -306,12 +321,14 @@ def fit(clip: Clip, base: np.ndarray, e: float, relax_by: float = bounds.RELAX, 
     tail = None if clip.whole is None else context.tail(context.before_block(clip.whole), pos, clip.positions,
                                                          clip.valid, window_steps(clip.motion.frame_rate))
     del pos  # the integers are packed without it (the entropy coders' work space comes on top)
-    release_free_memory()  # the rounds' freed arrays, not beside zstd's work space (mmap-ed, level 19)
-    sections = {
-        "c.codes": pack_uint64(codes.astype(np.uint64)),
-        "c.levels": window.pack_levels(levels, frames, depth) if seek
-        else encode_int_matrix(np.diff(levels, axis=0, prepend=0)),
-        "c.res": packed(q),
-    }
-    size = sum(len(v) + 8 for v in sections.values())
-    return Correction(sections, size, errors, e, jit, added, skated, depth, settled, tail)
+
+    def sections() -> dict[str, bytes]:
+        release_free_memory()  # the rounds' freed arrays, not beside zstd's work space (mmap-ed, level 19)
+        return {
+            "c.codes": pack_uint64(codes.astype(np.uint64)),
+            "c.levels": window.pack_levels(levels, frames, depth) if seek
+            else encode_int_matrix(np.diff(levels, axis=0, prepend=0)),
+            "c.res": packed(q),
+        }
+
+    return Correction(sections if lazy else sections(), errors, e, jit, added, skated, depth, settled, tail)

@@ -241,7 +241,7 @@ def bound_search(clip: Clip, base: np.ndarray, target: Target, relax_by: float, 
     e = min(guesses + ([e_cap] if e_cap is not None else []))
     best: Correction | None = None  # the largest bound met so far
     low_fail = math.inf  # the smallest bound missed so far
-    cur = fit(clip, base, e, relax_by, depth)
+    cur = fit(clip, base, e, relax_by, depth, lazy=True)  # only the correction kept is packed
     for _ in range(SEARCH_FITS):
         score = target.score(cur.errors)
         if score <= 1:
@@ -259,5 +259,6 @@ def bound_search(clip: Clip, base: np.ndarray, target: Target, relax_by: float, 
         if (best is not None and (nxt <= best.bound * 1.08 or (e_cap is not None and best.bound >= e_cap)))\
                 or (math.isfinite(low_fail) and nxt >= low_fail / 1.08 and best is not None):
             break
-        cur = fit(clip, base, nxt, relax_by, depth)
+        del cur  # let go before the next fit (unless it is the best so far)
+        cur = fit(clip, base, nxt, relax_by, depth, lazy=True)
     return best if best is not None else cur

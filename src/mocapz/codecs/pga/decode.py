@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import functools
+from collections.abc import Callable, Hashable
 from dataclasses import dataclass, replace
 from itertools import pairwise
 from typing import Any
@@ -19,10 +20,11 @@ from mocapz.codecs.pga.iksolve import pose, solve_fast
 from mocapz.codecs.pga.joints import check_skeleton, inner_joints, position_columns
 from mocapz.codecs.pga.model import PGAModel
 from mocapz.codecs.pga.outliers import decode_outliers, kept_frames
-from mocapz.codecs.pga.packing import unpack_matrices
+from mocapz.codecs.pga.packing import once, split_streams
 from mocapz.codecs.pga.params import PGASettings
 from mocapz.codecs.pga.quantise import dequantise_model, model_from_matrices
 from mocapz.errors import FormatError, OptionError
+from mocapz.format.entropy import decode_int_matrix
 from mocapz.model.header import ClipHeader
 from mocapz.model.skeleton import Skeleton
 
@@ -108,17 +110,18 @@ def _check_outliers(s: PGASettings, frames: int) -> None:
 
 
 def decode_channels(skeleton: Skeleton, s: PGASettings, sections: dict[str, bytes], frames: int,
-                    edit: dict[int, np.ndarray] | None = None) -> np.ndarray:
+                    edit: dict[int, np.ndarray] | None = None, memo: dict[Hashable, Any] | None = None) -> np.ndarray:
     """Decoded channel values ``(frames, channels)``.
 
-    ``edit`` maps effector slots to replacement global trajectories ``(kept frames, 3)`` (motion editing).
+    ``edit`` maps effector slots to replacement global trajectories ``(kept frames, 3)`` (motion editing);
+    ``memo``: a rate search's (:func:`decode_streams`).
     """
     _check_outliers(s, frames)
     outliers = np.asarray(s.outliers, dtype=np.int64)
     n = frames - outliers.size
     # every stream is read, and checked against the frame count, before frames x channels are allocated
     exact = decode_outliers(sections["outl"], outliers.size, skeleton.n_channels) if outliers.size else None
-    kept_values = decode_kept(skeleton, s, sections, n, edit) if n else None
+    kept_values = decode_kept(skeleton, s, sections, n, edit, memo=memo) if n else None
     if exact is None and kept_values is not None and kept_values.shape == (frames, skeleton.n_channels):
         return kept_values  # every frame kept: no copy
     out = np.zeros((frames, skeleton.n_channels))
@@ -144,39 +147,47 @@ class Decoded:
 
 
 def decode_streams(skeleton: Skeleton, s: PGASettings, sections: dict[str, bytes], n: int,
-                   window: tuple[int, int] | None = None) -> Decoded:
+                   window: tuple[int, int] | None = None, memo: dict[Hashable, Any] | None = None) -> Decoded:
     """The ``data`` section's streams for ``n`` kept frames, with the effector targets in the root frame; only
     the kept frames ``[a, b)`` of ``window`` (those rows of the whole, to the bit; the trajectories' samples they
-    do not need are not computed)."""
+    do not need are not computed). ``memo``: a rate search's (:func:`.packing.once`), where each stream's
+    decoding is kept by its bytes and settings (whole clips only)."""
     inner = inner_joints(skeleton)
     _, other_cols = position_columns(skeleton)
     if s.eff_mode == 2:
         effectors = np.zeros(0, dtype=np.int64)
     else:
         effectors = effector_points(skeleton, s.effectors)
-    mats = unpack_matrices(sections["data"], stream_count(s, other_cols.size))
+    memo = memo if window is None else None
+    blobs = split_streams(sections["data"], stream_count(s, other_cols.size))
+    mats = [once(memo, ("integers", b), lambda b=b: decode_int_matrix(b)) for b in blobs]
     _check_shapes(mats, s, n, len(inner), len(effectors), other_cols.size)
-    model = dequantise_model(model_from_matrices(mats[0], mats[1]), inner, s.k, s.basis_bits, s.mean_step)
+    model = once(memo, ("model", blobs[0], blobs[1], s.k, s.basis_bits, s.mean_step), lambda: dequantise_model(
+        model_from_matrices(mats[0], mats[1]), inner, s.k, s.basis_bits, s.mean_step))
     if window is None:
         rn, so3, f = lifting.decode_rn, lifting.decode_so3, n
     else:
         rn = functools.partial(lifting.decode_rn_window, a=window[0], b=window[1])
         so3 = functools.partial(lifting.decode_so3_window, a=window[0], b=window[1])
         f = window[1] - window[0]
-    root_pos = rn(mats[2], n, s.pos_step, s.lod_root)
-    root_rot = so3(mats[3], n, s.rot_step, s.lod_root)
+
+    def decoded(i: int, step: float, lod: int, of: Callable[..., np.ndarray] = rn) -> np.ndarray:
+        return once(memo, (i, blobs[i], step, lod), lambda: of(mats[i], n, step, lod))
+
+    root_pos = decoded(2, s.pos_step, s.lod_root)
+    root_rot = decoded(3, s.rot_step, s.lod_root, so3)
     if s.eff_mode == 2:
         eff = np.zeros((f, 0, 3))
     else:
-        eff = rn(mats[4], n, s.pos_step, s.lod_effectors).reshape(f, -1, 3)
+        eff = decoded(4, s.pos_step, s.lod_effectors).reshape(f, -1, 3)
     if eff.shape[1] != len(effectors):
         raise FormatError(None, "corrupted PGA stream (effector count)")
     pos = 5
     coords = None
     if s.use_coords:
-        coords = rn(mats[pos], n, s.coord_step, s.lod_coords)
+        coords = decoded(pos, s.coord_step, s.lod_coords)
         pos += 1
-    other = rn(mats[pos], n, s.pos_step, 0) if other_cols.size else np.zeros((f, 0))
+    other = decoded(pos, s.pos_step, 0) if other_cols.size else np.zeros((f, 0))
     problem = make_problem(skeleton, model, effectors, other)
     if s.eff_mode == 1 and coords is not None:
         targets = problem.forward(coords)[0] + eff
@@ -205,11 +216,11 @@ def _check_shapes(mats: list[np.ndarray], s: PGASettings, n: int, inner: int, ef
 
 
 def decode_rows(skeleton: Skeleton, s: PGASettings, sections: dict[str, bytes], n: int,
-                rows: np.ndarray) -> np.ndarray:
+                rows: np.ndarray, memo: dict[Hashable, Any] | None = None) -> np.ndarray:
     """Channels ``(len(rows), C)`` of some kept frames only (the IK is per frame when the temporal
     regulariser is off, so this equals those rows of the full decode; rate control uses it to check
-    candidates quickly)."""
-    d = decode_streams(skeleton, s, sections, n)
+    candidates quickly; ``memo``: its, :func:`decode_streams`)."""
+    d = decode_streams(skeleton, s, sections, n, memo=memo)
     if s.lam_temporal > 0:
         return rebuild(skeleton, d, s, d.targets)[rows]
     sub = _rows_of(d, rows)
@@ -240,10 +251,12 @@ def _rows_of(d: Decoded, rows: np.ndarray | slice) -> Decoded:
 
 
 def decode_kept(skeleton: Skeleton, s: PGASettings, sections: dict[str, bytes], n: int,
-                edit: dict[int, np.ndarray] | None = None, unwrap: Unwrapper | None = None) -> np.ndarray:
+                edit: dict[int, np.ndarray] | None = None, unwrap: Unwrapper | None = None,
+                memo: dict[Hashable, Any] | None = None) -> np.ndarray:
     """Channels ``(n, C)`` of the ``n`` kept frames; ``edit`` as in :func:`decode_channels`; ``unwrap``: the
-    file's stored turns (:mod:`.turns`) by default, else np.unwrap (edited targets: np.unwrap)."""
-    d = decode_streams(skeleton, s, sections, n)
+    file's stored turns (:mod:`.turns`) by default, else np.unwrap (edited targets: np.unwrap); ``memo``: a rate
+    search's (:func:`decode_streams`)."""
+    d = decode_streams(skeleton, s, sections, n, memo=memo)
     targets = d.targets
     if edit:
         targets = targets.copy()

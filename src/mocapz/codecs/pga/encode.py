@@ -3,7 +3,9 @@ pose model, multiscale trajectories, quantisation and entropy coding (:func:`enc
 
 from __future__ import annotations
 
+from collections.abc import Callable, Hashable
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -14,9 +16,10 @@ from mocapz.codecs.pga.ik import make_problem
 from mocapz.codecs.pga.joints import check_skeleton, inner_joints
 from mocapz.codecs.pga.model import PGAModel, coordinates, fit_pga
 from mocapz.codecs.pga.outliers import detect_outliers, encode_outliers, kept_frames
-from mocapz.codecs.pga.packing import pack_matrices
+from mocapz.codecs.pga.packing import once, pack_streams
 from mocapz.codecs.pga.params import PGASettings
 from mocapz.codecs.pga.quantise import model_matrices, quantise_model
+from mocapz.format.entropy import encode_int_matrix
 from mocapz.model.kinematics import forward_positions
 from mocapz.model.motion import Motion
 
@@ -35,6 +38,7 @@ class Prepared:
     eff_local: np.ndarray  # (F, e, 3) in the root frame
     full_model: PGAModel
     ref_cache: dict[int, np.ndarray] = field(default_factory=dict)  # original positions, for rate control
+    memo: dict[Hashable, Any] = field(default_factory=dict)  # rate control's streams (:func:`.packing.once`)
     shared: tuple[np.ndarray, PGAModel] | None = None  # a library's quantised model (integers, model) to code
     # against instead of quantising ``full_model`` (its k, basis bits and mean step are the settings')
 
@@ -56,40 +60,56 @@ def prepare(motion: Motion, effectors: list[int] | None = None, outliers: list[i
     return Prepared(motion, list(out), kept, clip, eff, pos[:, eff], local, model)  # type: ignore[arg-type]
 
 
-def encode_prepared(p: Prepared, s: PGASettings) -> dict[str, bytes]:
-    """Sections for fixed settings (``s.outliers`` / ``s.effectors`` are filled in from ``p``)."""
+def encode_prepared(p: Prepared, s: PGASettings, memo: dict[Hashable, Any] | None = None) -> dict[str, bytes]:
+    """Sections for fixed settings (``s.outliers`` / ``s.effectors`` are filled in from ``p``). ``memo``: a rate
+    search's (:func:`.packing.once`): each stream's integers, reconstruction and bytes kept by the settings it
+    is a function of (the same bytes)."""
     s = s.replace(outliers=list(p.outliers)).roundtrip()
     sections: dict[str, bytes] = {"params": s.to_bytes()}
     n = len(p.kept)
     if n:
         s.validate(p.full_model.basis.shape[0], n)
-        if p.shared is None:
-            ints, model_q = quantise_model(p.full_model, s.k, s.basis_bits, s.mean_step)
-        else:
-            ints, model_q = p.shared
+        model = (s.k, s.basis_bits, s.mean_step)
+        ints, model_q = p.shared if p.shared is not None else \
+            once(memo, ("model", *model), lambda: quantise_model(p.full_model, *model))
         inner = model_q.joints
-        mats = model_matrices(ints, len(model_q.joints), s.k)
-        mats.append(lifting.encode_rn(p.clip.root_pos, s.pos_step, s.lod_root)[0])
-        mats.append(lifting.encode_so3(p.clip.root_rot, s.rot_step, s.lod_root)[0])
-        other_q, other_rec = lifting.encode_rn(p.clip.other_pos, s.pos_step, 0)
+        clip = p.clip
+
+        def rn(key: tuple[Any, ...], x: Callable[[], np.ndarray], step: float, lod: int
+               ) -> tuple[np.ndarray, np.ndarray]:
+            return once(memo, key, lambda: lifting.encode_rn(x(), step, lod))
+
+        head, loadings = once(memo, ("model matrices", *model), lambda: model_matrices(ints, len(inner), s.k))
+        root, turn = ("root", s.pos_step, s.lod_root), ("root rotations", s.rot_step, s.lod_root)
+        mats = [(("head", *model), head), (("loadings", *model), loadings),
+                (root, rn(root, lambda: clip.root_pos, s.pos_step, s.lod_root)[0]),
+                (turn, once(memo, turn, lambda: lifting.encode_so3(clip.root_rot, s.rot_step, s.lod_root))[0])]
+        other = ("other", s.pos_step)
+        other_q, other_rec = rn(other, lambda: clip.other_pos, s.pos_step, 0)
+        coords = ("coordinates", *model, s.coord_step, s.lod_coords)
         coords_q = coords_rec = None
         if s.use_coords:
-            x = coordinates(model_q, p.clip.local_rot[:, inner])
-            coords_q, coords_rec = lifting.encode_rn(x, s.coord_step, s.lod_coords)
+            coords_q, coords_rec = rn(coords, lambda: coordinates(model_q, clip.local_rot[:, inner]), s.coord_step,
+                                      s.lod_coords)
         if s.eff_mode == 2:
-            mats.append(np.zeros((1, 0), dtype=np.int64))
+            mats.append((("no effectors",), np.zeros((1, 0), dtype=np.int64)))
         elif s.eff_mode == 1 and coords_rec is not None:
             # residual of the true root-frame effector positions against those the coded pose gives
-            problem = make_problem(p.motion.skeleton, model_q, p.effectors, other_rec)
-            resid = p.eff_local - problem.forward(coords_rec)[0]
-            mats.append(lifting.encode_rn(resid.reshape(n, -1), s.pos_step, s.lod_effectors)[0])
+            def resid(rec: np.ndarray = coords_rec) -> np.ndarray:
+                problem = make_problem(p.motion.skeleton, model_q, p.effectors, other_rec)
+                return (p.eff_local - problem.forward(rec)[0]).reshape(n, -1)
+
+            key = ("effector residual", *coords[1:], s.pos_step, s.lod_effectors)
+            mats.append((key, rn(key, resid, s.pos_step, s.lod_effectors)[0]))
         else:
-            mats.append(lifting.encode_rn(p.eff_global.reshape(n, -1), s.pos_step, s.lod_effectors)[0])
+            key = ("effectors", s.pos_step, s.lod_effectors)
+            mats.append((key, rn(key, lambda: p.eff_global.reshape(n, -1), s.pos_step, s.lod_effectors)[0]))
         if coords_q is not None:
-            mats.append(coords_q)
-        if p.clip.other_pos.shape[1]:
-            mats.append(other_q)
-        sections["data"] = pack_matrices(mats)
+            mats.append((coords, coords_q))
+        if clip.other_pos.shape[1]:
+            mats.append((other, other_q))
+        sections["data"] = pack_streams([once(memo, ("bytes", *key), lambda m=m: encode_int_matrix(m))
+                                         for key, m in mats])
     if p.outliers:
         sections["outl"] = encode_outliers(p.motion, p.outliers)
     return sections

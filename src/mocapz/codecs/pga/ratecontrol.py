@@ -62,17 +62,20 @@ def evaluate_settings(p: Prepared, s: PGASettings, rows: np.ndarray | None = Non
     """Encode, decode with the real decoder, and measure: (sections, bytes, errors).
 
     With ``rows`` (indices of kept frames) only those frames are decoded and measured: an estimate used
-    while searching; the final choice is always checked on every frame.
+    while searching; the final choice is always checked on every frame. Each stream is coded and decoded once
+    per clip and the settings it depends on (``p.memo``: the candidates of a search differ in a setting or two;
+    the IK is solved for every candidate).
     """
-    sections = encode_prepared(p, s)
+    memo = p.memo
+    sections = encode_prepared(p, s, memo)
     size = sum(len(v) + 2 for v in sections.values())
     sk = p.motion.skeleton
     s_dec = PGASettings.from_bytes(sections["params"])
     if rows is None:
-        ch = decode_channels(sk, s_dec, sections, p.motion.n_frames)
+        ch = decode_channels(sk, s_dec, sections, p.motion.n_frames, memo=memo)
         a = _reference(p, None)
     else:
-        ch = decode_rows(sk, s_dec, sections, len(p.kept), rows)
+        ch = decode_rows(sk, s_dec, sections, len(p.kept), rows, memo)
         a = _reference(p, rows)
     return sections, size, ErrorMetric.between(a, forward_positions(sk, ch))
 
@@ -210,6 +213,7 @@ def search(p: Prepared, fixed: dict[str, Any], target: Target) -> tuple[dict[str
                 break
             best, best_sections = cand, sec
             log.append(f"iterations={it}: {_show(got)}")
+    p.memo.clear()  # the streams kept for the candidates
     return best_sections, best, log
 
 
