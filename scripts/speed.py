@@ -21,6 +21,9 @@ share, found by the rounds after the first), in the same rounds (default blocks:
 cost: the size of the 1-s and the 4-s file over the one-block file, minus 1, in %. That
 process is stopped after ``--time-limit * (4 * --repeat + 6) + 60`` seconds.
 
+Encode with each target: the whole ``mocapz compress`` of each CMU clip measured with each of :data:`TARGETS`
+(one command a clip, best of ``--repeat``), beside the default target's column.
+
 A library in one command (with two CMU clips or more): ``mocapz compress CLIPS... -o DIR`` over all the CMU
 clips measured, per codec, serially on one thread (start-up, and numba's loading without the ahead-of-time
 kernels, paid once), best of ``--repeat``.
@@ -58,6 +61,9 @@ OUT = ROOT / "docs" / "benchmarks" / "speed.md"
 CODECS = ("lossless", "quant", "pga", "patterns", "subsample", "pca", "segpca")
 FIXED: dict[str, dict[str, Any]] = {"pga": {"geodesics": 16}}  # fixed settings: the defaults, pga at 16 geodesics
 TARGET = {"max_error": "1cm"}
+# the other targets' whole commands (CMU clips, one command a clip): the distortion of the papers' tables and an ARMS
+TARGETS: dict[str, list[str]] = {"max distortion 0.36 %": ["--max-distortion", "0.36"],
+                                 "max ARMS 5 mm": ["--max-arms", "5mm"]}
 QUICK = ("09_06", "12_01", "02_05")
 SYNTH_SOURCE, SYNTH_FRAMES = "06_13", 72_000
 ONE_THREAD = {"OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
@@ -227,9 +233,54 @@ def compile_bytecode() -> None:
     compileall.compile_dir(str(Path(mocapz.__file__).parent), quiet=1)
 
 
-def run_cli(path: Path, codec: str, repeat: int, limit: float, tmp: Path) -> dict[str, Any]:
-    """Wall time (best of ``repeat``) of the whole command ``mocapz compress`` (start-up and file read included)."""
-    return _command_time([path], lambda: contextlib.nullcontext(str(tmp / f"cli.{codec}.mcz")), codec, repeat, limit)
+def run_cli(path: Path, codec: str, repeat: int, limit: float, tmp: Path, flags: list[str] | None = None
+            ) -> dict[str, Any]:
+    """Wall time (best of ``repeat``) of the whole command ``mocapz compress`` (start-up and file read included),
+    with the codec's fixed options and ``flags`` (a target)."""
+    return _command_time([path], lambda: contextlib.nullcontext(str(tmp / f"cli.{codec}.mcz")), codec, repeat, limit,
+                         flags)
+
+
+def run_targets(paths: list[Path], codecs: list[str], repeat: int, limit: float) -> dict[str, dict[str, Any]]:
+    """Per lossy codec and :data:`TARGETS` label: ``{"cli_s": the one-clip commands' times added up}`` over
+    ``paths`` (each best of ``repeat``), or the first clip's ``{"over"}`` / ``{"error"}``."""
+    out: dict[str, dict[str, Any]] = {}
+    with tempfile.TemporaryDirectory() as td:
+        for codec in codecs:
+            if codec == "lossless":
+                continue
+            for label, flags in TARGETS.items():
+                total: dict[str, Any] = {"cli_s": 0.0}
+                for path in paths:
+                    got = run_cli(path, codec, repeat, limit + 30, Path(td), flags)
+                    if "cli_s" not in got:
+                        total = got
+                        break
+                    total["cli_s"] += got["cli_s"]
+                out.setdefault(codec, {})[label] = total
+                print(f"targets {codec} {label}: {json.dumps(total)}", file=sys.stderr, flush=True)
+    return out
+
+
+def targets_table(rows: list[dict[str, Any]], targets: dict[str, dict[str, Any]]) -> list[str]:
+    """The *encode with each target* table: frames/s of the one-clip commands over the CMU clips (their times added
+    up) at the default target (column `mocapz compress`) and at each of :data:`TARGETS`, ``x`` over the lossless
+    codec's one-clip commands."""
+    frames = sum(r["frames"] for r in rows if r["codec"] == "lossless" and r["frames"])
+    ref = sum(r["cli"].get("cli_s") or 0.0 for r in rows if r["codec"] == "lossless") or None
+
+    def cell(m: dict[str, Any]) -> str:
+        fps = _fps(frames, m.get("cli_s"))
+        return _failed(m) or (f"{fps:,.0f}" + (f" x{ref / m['cli_s']:.2f}" if ref else "") if fps else "-")
+
+    lines = ["| codec | frames | max error 1 cm (the default) | " + " | ".join(TARGETS) + " |",
+             "|---|---|---|" + "---|" * len(TARGETS)]
+    for codec, by_target in targets.items():
+        mine = [r["cli"].get("cli_s") for r in rows if r["codec"] == codec]
+        default = {"cli_s": sum(mine)} if mine and all(mine) else {}
+        lines.append(f"| {codec} | {frames:,} | {cell(default)} | "
+                     + " | ".join(cell(by_target.get(t, {})) for t in TARGETS) + " |")
+    return lines
 
 
 def run_library(paths: list[Path], codec: str, repeat: int, limit: float) -> dict[str, Any]:
@@ -239,11 +290,12 @@ def run_library(paths: list[Path], codec: str, repeat: int, limit: float) -> dic
 
 
 def _command_time(paths: list[Path], output: Callable[[], ContextManager[str]], codec: str, repeat: int,
-                  limit: float) -> dict[str, Any]:
+                  limit: float, extra: list[str] | None = None) -> dict[str, Any]:
     """``{"cli_s": best wall time}`` of ``mocapz compress PATHS... -o OUT`` (``output()`` gives OUT for each run)
-    with the codec's fixed options, on one thread; or ``{"over": limit}``, ``{"error": its last line}``."""
+    with the codec's fixed options and ``extra`` flags, on one thread; or ``{"over": limit}``, ``{"error": its last
+    line}``."""
     exe = Path(sys.executable).parent / "mocapz"
-    flags = [f"--{k.replace('_', '-')}={v}" for k, v in FIXED.get(codec, {}).items()]
+    flags = [f"--{k.replace('_', '-')}={v}" for k, v in FIXED.get(codec, {}).items()] + (extra or [])
     best = None
     for _ in range(repeat):
         with output() as out:
@@ -512,7 +564,8 @@ def _with_seek(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
 
 
 def render(rows: list[dict[str, Any]], codecs: list[str], args: argparse.Namespace, started: str,
-           info: dict[str, Any], wall: float, library: dict[str, Any] | None = None) -> str:
+           info: dict[str, Any], wall: float, library: dict[str, Any] | None = None,
+           targets: dict[str, dict[str, Any]] | None = None) -> str:
     cmu = [r for r in rows if r["clip"] != "synthetic 10 min"]
     synth = [r for r in rows if r["clip"] == "synthetic 10 min"]
     lines = [
@@ -566,7 +619,7 @@ def render(rows: list[dict[str, Any]], codecs: list[str], args: argparse.Namespa
         "| goal | where to read it |", "|---|---|",
         "| encode with a target >= 2,000 frames/s (pga, patterns), whole command | `mocapz compress` (the default "
         "target, max error 1 cm, feet held): one command a clip (column `mocapz compress`) and a library in one "
-        "command (its table) |",
+        "command (its table); the other targets: *encode with each target* |",
         "| encode at fixed settings >= 10,000 frames/s; lossless and quant >= 20,000 | `encode, fixed` |",
         "| decode >= 50,000 frames/s (<= 20 us/frame) every codec; <= 10 us lossless and quant | `decode` |",
         "| memory under 300 MB for a 5,000-frame clip | `peak memory` (06_13, 4,906 frames) |",
@@ -586,6 +639,15 @@ def render(rows: list[dict[str, Any]], codecs: list[str], args: argparse.Namespa
                       "every file read and written), with the same options as the column `mocapz compress`, best "
                       f"of {args.repeat}; frames/s, `xN` over the lossless codec's same command.", ""]
             lines += library_table(cmu, library) + [""]
+        if targets:
+            lines += ["### Encode with each target", "",
+                      "The whole `mocapz compress CLIP --codec C` (start-up and file read included, one command a "
+                      "clip, best of " f"{args.repeat} each, their times added up over the CMU clips above) at the "
+                      "default target (the column `mocapz compress`) and with `" + "`, `".join(
+                          " ".join(f) for f in TARGETS.values()) + "` (the correction's bound search; pga's own "
+                      "rate search on clips of up to 300 frames); frames/s, `xN` over the lossless codec's "
+                      "one-clip commands.", ""]
+            lines += targets_table(cmu, targets) + [""]
         lines += ["### Seek and blocks, CMU clips all together", ""]
         lines += seek_table(summarise_seek(_with_seek(cmu), codecs), with_clip=False) + [""]
     if synth:
@@ -622,7 +684,7 @@ def main(argv: list[str] | None = None) -> int:
         codecs = saved.get("codecs") or list(dict.fromkeys(r["codec"] for r in saved["rows"]))
         started = saved.get("started", time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime(args.render.stat().st_mtime)))
         text = render(saved["rows"], codecs, args, started, saved["machine"], saved.get("wall_s", 0.0),
-                      saved.get("library"))
+                      saved.get("library"), saved.get("targets"))
         args.out.write_text(text + "\n", encoding="utf-8")
         print(text)
         return 0
@@ -654,12 +716,14 @@ def main(argv: list[str] | None = None) -> int:
     cmu = [path for name, path in clips if path is not None]
     library = {codec: run_library(cmu, codec, args.repeat, args.time_limit * len(cmu) + 30)
                for codec in codecs} if len(cmu) > 1 else None
+    targets = run_targets(cmu, codecs, args.repeat, args.time_limit) if cmu else None
     wall = time.perf_counter() - t0
-    text = render(rows, codecs, args, started, info, wall, library)
+    text = render(rows, codecs, args, started, info, wall, library, targets)
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text(text + "\n", encoding="utf-8")
     saved = {"machine": info, "rows": rows, "codecs": codecs, "argv": args.argv, "repeat": args.repeat,
-             "time_limit": args.time_limit, "started": started, "wall_s": wall, "library": library}
+             "time_limit": args.time_limit, "started": started, "wall_s": wall, "library": library,
+             "targets": targets}
     args.out.with_suffix(".json").write_text(json.dumps(saved, indent=1) + "\n", encoding="utf-8")
     print(text)
     return 0

@@ -129,3 +129,24 @@ def test_library_command(tmp_path: Path) -> None:
     lines = speed.library_table(rows, {"lossless": {"cli_s": 1.0}, "quant": failed})
     assert lines[2] == "| lossless | 2 | 291 | 291 x1.00 | 291 x1.00 |"
     assert lines[3].startswith("| quant | 2 | 291 | error: ") and "broken.bvh" in lines[3]
+
+
+def test_targets_commands(tmp_path: Path) -> None:
+    """Each target's whole commands: one ``mocapz compress`` a clip with the target's flags (a real short clip:
+    the file it writes meets the target), their times added up, a failing clip reporting its error, and the table
+    beside the default target's column and the lossless codec's one-clip commands."""
+    clip = data_path("cmu/bvh/09_06.bvh")
+    got = speed.run_targets([clip], ["lossless", "quant"], 1, 120.0)
+    assert set(got) == {"quant"} and set(got["quant"]) == set(speed.TARGETS)
+    assert all(m["cli_s"] > 0 for m in got["quant"].values())
+    assert "cli_s" in speed.run_cli(clip, "quant", 1, 120.0, tmp_path, ["--max-arms", "5mm"])
+    written = mocapz.decompress((tmp_path / "cli.quant.mcz").read_bytes())
+    assert mocapz.evaluate(mocapz.load(clip), written).arms_cm <= 0.5
+    broken = tmp_path / "broken.bvh"
+    broken.write_text("HIERARCHY\nROOT\n")
+    failed = speed.run_targets([clip, broken], ["quant"], 1, 120.0)["quant"]
+    assert all("broken.bvh" in m["error"] for m in failed.values())
+    rows = [{"clip": "a", "codec": c, "frames": 142, "cli": {"cli_s": t}} for c, t in (("lossless", 0.5), ("quant", 1))]
+    mine = {"max distortion 0.36 %": {"cli_s": 2.0}, "max ARMS 5 mm": failed["max ARMS 5 mm"]}
+    lines = speed.targets_table(rows, {"quant": mine})
+    assert lines[2].startswith("| quant | 142 | 142 x0.50 | 71 x0.25 | error: ") and "broken.bvh" in lines[2]
