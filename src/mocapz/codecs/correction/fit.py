@@ -322,7 +322,7 @@ def fit(clip: Clip, base: np.ndarray, e: float, relax_by: float = bounds.RELAX, 
                                                          clip.valid, window_steps(clip.motion.frame_rate))
     del pos  # the integers are packed without it (the entropy coders' work space comes on top)
 
-    def sections() -> dict[str, bytes]:
+    def sections(q: np.ndarray, levels: np.ndarray) -> dict[str, bytes]:
         release_free_memory()  # the rounds' freed arrays, not beside zstd's work space (mmap-ed, level 19)
         return {
             "c.codes": pack_uint64(codes.astype(np.uint64)),
@@ -331,4 +331,20 @@ def fit(clip: Clip, base: np.ndarray, e: float, relax_by: float = bounds.RELAX, 
             "c.res": packed(q),
         }
 
-    return Correction(sections if lazy else sections(), errors, e, jit, added, skated, depth, settled, tail)
+    if lazy:  # kept in the smallest integer types that hold them until packed (a search keeps one beside a fit)
+        kept = [(_narrow(a), a.dtype) for a in (q, levels)]
+        del q, levels
+        return Correction(lambda: sections(*(a.astype(t) for a, t in kept)), errors, e, jit, added, skated, depth,
+                          settled, tail)
+    return Correction(sections(q, levels), errors, e, jit, added, skated, depth, settled, tail)
+
+
+def _narrow(a: np.ndarray) -> np.ndarray:
+    """Integers ``a`` in the smallest signed type that holds them (the same layout): the same numbers back with
+    ``astype`` of ``a``'s type."""
+    if a.size:
+        lo, hi = int(a.min()), int(a.max())
+        for t in (np.int8, np.int16, np.int32):
+            if np.iinfo(t).min <= lo and hi <= np.iinfo(t).max:
+                return a.astype(t)
+    return a
