@@ -1,6 +1,7 @@
 """A rate search's shortcuts give the search's very bytes: PGA's memo of each stream by the settings it depends on
-(a candidate codes and decodes only the streams its move changes), and the correction's bound search packing only
-the correction it keeps (the others' sections are never asked for)."""
+(a candidate codes and decodes only the streams its move changes), a short clip's candidates screened with the
+compiled IK (the choice checked with the decoder), and the correction's bound search packing only the correction it
+keeps (the others' sections are never asked for)."""
 
 from __future__ import annotations
 
@@ -72,3 +73,29 @@ def test_bound_search_packs_the_correction_it_keeps_as_a_fit_does() -> None:
     assert not callable(eager.made)
     assert cor.sections == eager.sections and cor.size == eager.size and cor.errors == eager.errors
     assert not callable(cor.made)  # packed once asked, and kept
+
+
+def test_a_short_clips_search_screened_with_the_compiled_ik_chooses_what_the_decoder_would() -> None:
+    """A clip under ikjit.LAZY_FRAMES (its values the NumPy IK's): the candidates' errors estimated with the compiled
+    IK, the choice checked with the decoder; the same settings and sections as a search decoding every candidate
+    with the decoder, and the file meets the target when decoded."""
+    from mocapz import aot
+    from mocapz.codecs.pga import ikjit, ratecontrol
+
+    if aot.kernels("ik") is None or not ikjit.enabled():
+        pytest.skip("no kernels compiled ahead of time (make kernels), or turned off: the search does not screen")
+    m = mocapz.load(data_path("cmu/bvh/09_06.bvh")).slice(0, 120)
+    target = Target(max_distortion=0.5)
+    p = prepare(m)
+    assert ratecontrol.screens(p)
+    screened = search(p, {}, target)
+    assert any("checked on all frames" in x for x in screened[2])
+    real = ratecontrol.screens
+    ratecontrol.screens = lambda p: False  # type: ignore[assignment]
+    try:
+        plain = search(prepare(m), {}, target)
+    finally:
+        ratecontrol.screens = real
+    assert screened[0] == plain[0] and screened[1] == plain[1]
+    assert not any("checked on all frames" in x for x in plain[2])
+    assert target.met(evaluate_settings(prepare(m), screened[1])[2])

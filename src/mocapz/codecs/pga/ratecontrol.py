@@ -4,16 +4,20 @@ With a target (``max_distortion`` in percent, ``max_error`` as a length) the enc
 settings for the smallest file whose *decoded* result meets the target on this clip: it starts from a
 fine setting, checks it meets the target, then greedily takes the coarsening step (fewer geodesics, more
 levels of detail dropped, coarser quantisation) that saves the most bytes while still meeting the target,
-until no step does. Every candidate is checked by decoding it with the real decoder.
+until no step does. Every candidate is checked by decoding it: with the decoder, or on a short clip with the
+compiled IK (:func:`screens`: the decoder's values to rounding), the choice then checked with the decoder.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
+from contextlib import nullcontext
 from typing import Any
 
 import numpy as np
 
+from mocapz import aot
+from mocapz.codecs.pga import ikjit
 from mocapz.codecs.pga.decode import decode_channels, decode_rows, with_turns
 from mocapz.codecs.pga.effectors import find_effectors
 from mocapz.codecs.pga.encode import Prepared, encode_prepared, prepare
@@ -57,27 +61,38 @@ def default_settings(p: Prepared, fixed: dict[str, Any], options: dict[str, Any]
     return s.replace(**fixed)
 
 
-def evaluate_settings(p: Prepared, s: PGASettings, rows: np.ndarray | None = None
+def evaluate_settings(p: Prepared, s: PGASettings, rows: np.ndarray | None = None, screen: bool = False
                       ) -> tuple[dict[str, bytes], int, Errors]:
     """Encode, decode with the real decoder, and measure: (sections, bytes, errors).
 
     With ``rows`` (indices of kept frames) only those frames are decoded and measured: an estimate used
     while searching; the final choice is always checked on every frame. Each stream is coded and decoded once
     per clip and the settings it depends on (``p.memo``: the candidates of a search differ in a setting or two;
-    the IK is solved for every candidate).
+    the IK is solved for every candidate). ``screen``: decoded with the compiled IK whatever the clip's length
+    (:func:`screens`): an estimate, the values of the real decoder to rounding, which the search's last check
+    confirms with the real decoder.
     """
     memo = p.memo
     sections = encode_prepared(p, s, memo)
     size = sum(len(v) + 2 for v in sections.values())
     sk = p.motion.skeleton
     s_dec = PGASettings.from_bytes(sections["params"])
-    if rows is None:
-        ch = decode_channels(sk, s_dec, sections, p.motion.n_frames, memo=memo)
-        a = _reference(p, None)
-    else:
-        ch = decode_rows(sk, s_dec, sections, len(p.kept), rows, memo)
-        a = _reference(p, rows)
+    with ikjit.stream_block() if screen else nullcontext():  # the compiled kernels whatever the length
+        if rows is None:
+            ch = decode_channels(sk, s_dec, sections, p.motion.n_frames, memo=memo)
+            a = _reference(p, None)
+        else:
+            ch = decode_rows(sk, s_dec, sections, len(p.kept), rows, memo)
+            a = _reference(p, rows)
     return sections, size, ErrorMetric.between(a, forward_positions(sk, ch))
+
+
+def screens(p: Prepared) -> bool:
+    """Whether the search screens a clip's candidates with the compiled IK: a clip under
+    :data:`.ikjit.LAZY_FRAMES` kept frames (its file's values are the NumPy IK's, which the compiled one gives to
+    rounding, about 6 times faster there), where the kernels are compiled ahead of time (nothing to load; with
+    numba alone, loading it would cost more than a short clip's search)."""
+    return len(p.kept) < ikjit.LAZY_FRAMES and ikjit.enabled() and aot.kernels("ik") is not None
 
 
 def _reference(p: Prepared, rows: np.ndarray | None) -> np.ndarray:
@@ -137,11 +152,12 @@ def search(p: Prepared, fixed: dict[str, Any], target: Target) -> tuple[dict[str
     scale = float(np.ptp(p.eff_global.reshape(-1, 3), axis=0).max()) if p.eff_global.size else 1.0
     k_fine = min(dim, max(k_for_variance(p.full_model, 0.9995), 8))
     met = False
+    screen = screens(p)  # the candidates' errors estimated (the compiled IK); the choice checked by the decoder
     for k in sorted({k_fine, min(dim, 2 * k_fine), dim}):
         start = PGASettings(k=k, lod_root=0, lod_effectors=0, lod_coords=0, pos_step=max(scale, 1e-6) * 2e-5,
                             coord_step=1e-3, rot_step=2e-4, basis_bits=12, mean_step=5e-5,
                             iterations=PGASettings().iterations).replace(**fixed)
-        best_sections, best_size, err = evaluate_settings(p, start)
+        best_sections, best_size, err = evaluate_settings(p, start, screen=screen)
         if target.met(err):
             met = True
             break
@@ -167,7 +183,7 @@ def search(p: Prepared, fixed: dict[str, Any], target: Target) -> tuple[dict[str
         accepted = None
         for i, name in enumerate(order):
             cand = moves[name]()
-            sec, size, got = evaluate_settings(p, cand, rows)
+            sec, size, got = evaluate_settings(p, cand, rows, screen)
             if not tight.met(got):
                 failed.add(name)
                 stale.pop(name, None)
@@ -185,7 +201,7 @@ def search(p: Prepared, fixed: dict[str, Any], target: Target) -> tuple[dict[str
                 break
             name = max(fresh)[1]
             cand = moves[name]()
-            sec, size, got = evaluate_settings(p, cand, rows)
+            sec, size, got = evaluate_settings(p, cand, rows, screen)
             if not (tight.met(got) and size < best_size):
                 break
             accepted = (size, name, cand, sec, got)
@@ -194,8 +210,8 @@ def search(p: Prepared, fixed: dict[str, Any], target: Target) -> tuple[dict[str
         cur = got
         history.append(best)
         log.append(f"{name}: size={size} {_show(got)}" + (" (frame subset)" if rows is not None else ""))
-    if rows is not None:
-        # check on every frame; step back along the path taken until the target holds
+    if rows is not None or screen:
+        # check on every frame with the decoder; step back along the path taken until the target holds
         for cand in reversed(history):
             sec, size, got = evaluate_settings(p, cand)
             if target.met(got):
