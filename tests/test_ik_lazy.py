@@ -65,7 +65,7 @@ def test_the_path_is_a_function_of_the_length_only() -> None:
 
 def test_a_streams_blocks_take_the_compiled_ik_whatever_their_length(monkeypatch: pytest.MonkeyPatch) -> None:
     """A pga stream's blocks (about 1 s, under LAZY_FRAMES) take the compiled IK in the encoder and in every
-    decoder, which all know the block is a stream's (ikjit.stream_block): the same values from the stream
+    decoder, which all know the block is a stream's (ikjit.any_length): the same values from the stream
     decoder and from mocapz.decompress, within the target; the blocks' IK does run compiled."""
     pytest.importorskip("numba")
     import numpy as np
@@ -74,7 +74,7 @@ def test_a_streams_blocks_take_the_compiled_ik_whatever_their_length(monkeypatch
     from mocapz.codecs.pga import iksolve
 
     assert ikjit.kernels(ikjit.LAZY_FRAMES - 1) is None
-    with ikjit.stream_block():
+    with ikjit.any_length():
         assert ikjit.kernels(ikjit.LAZY_FRAMES - 1) is not None
     assert ikjit.kernels(ikjit.LAZY_FRAMES - 1) is None  # only inside
     m = mocapz.load(data_path("cmu/bvh/02_05.bvh")).slice(0, 400)

@@ -30,27 +30,29 @@ from mocapz._jit import COMPILE_ROOM, enabled, room_to_compile, set_enabled
 _KERNELS: dict[str, Any] | None = None
 LAZY_FRAMES = 500  # clips of fewer frames: the NumPy path, always (the correction layer's threshold too,
 # correction/compiled.py: a clip under it loads no numba at all)
-_STREAM: ContextVar[bool] = ContextVar("pga_stream_block", default=False)
+_ANY_LENGTH: ContextVar[bool] = ContextVar("pga_any_length", default=False)
 
 
 @contextmanager
-def stream_block() -> Iterator[None]:
-    """Code or decode a stream's block inside: the compiled kernels whatever its length (a stream's blocks are
-    about a second each, but a stream is long: loading numba pays, and every block then takes the same path in
-    the encoder and in every decoder, which know alike that it is a stream's block)."""
-    token = _STREAM.set(True)
+def any_length() -> Iterator[None]:
+    """The compiled kernels inside whatever the clip's length: a stream's block (about a second each, but a stream
+    is long: loading numba pays, and every block then takes the same path in the encoder and in every decoder,
+    which know alike that it is a stream's block), or a short clip's rate search screening its candidates
+    (:func:`.ratecontrol.screens`: an estimate the decoder then checks)."""
+    token = _ANY_LENGTH.set(True)
     try:
         yield
     finally:
-        _STREAM.reset(token)
+        _ANY_LENGTH.reset(token)
 
 
 def kernels(frames: int | None = None) -> dict[str, Any] | None:
     """The compiled kernels by name for a clip of ``frames`` frames, or None: without numba, when disabled, or
-    when ``frames`` is under :data:`LAZY_FRAMES` (None: whatever the length; tests), but in a stream's block
-    (:func:`stream_block`). Never a function of whether numba is loaded already (see the module's docstring)."""
+    when ``frames`` is under :data:`LAZY_FRAMES` (None: whatever the length; tests), but inside
+    :func:`any_length` (a stream's block, a rate search's screening). Never a function of whether numba is loaded
+    already (see the module's docstring)."""
     global _KERNELS
-    if not enabled() or (frames is not None and frames < LAZY_FRAMES and not _STREAM.get()):
+    if not enabled() or (frames is not None and frames < LAZY_FRAMES and not _ANY_LENGTH.get()):
         return None
     if _KERNELS is None and (ahead := aot.kernels("ik")) is not None:  # compiled ahead of time: nothing to load
         _KERNELS = {name: getattr(ahead, name) for name in ("solve_frames", "pose", "euler_channels")}
@@ -93,4 +95,4 @@ def _warm(k: dict[str, Any]) -> None:
                         np.zeros(1, np.bool_), 1.0, np.zeros((1, 3)))
 
 
-__all__ = ["COMPILE_ROOM", "LAZY_FRAMES", "enabled", "kernels", "room_to_compile", "set_enabled", "stream_block"]
+__all__ = ["COMPILE_ROOM", "LAZY_FRAMES", "any_length", "enabled", "kernels", "room_to_compile", "set_enabled"]

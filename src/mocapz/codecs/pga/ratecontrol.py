@@ -77,7 +77,7 @@ def evaluate_settings(p: Prepared, s: PGASettings, rows: np.ndarray | None = Non
     size = sum(len(v) + 2 for v in sections.values())
     sk = p.motion.skeleton
     s_dec = PGASettings.from_bytes(sections["params"])
-    with ikjit.stream_block() if screen else nullcontext():  # the compiled kernels whatever the length
+    with ikjit.any_length() if screen else nullcontext():
         if rows is None:
             ch = decode_channels(sk, s_dec, sections, p.motion.n_frames, memo=memo)
             a = _reference(p, None)

@@ -11,7 +11,7 @@ without the model, ``outl`` and the correction's ``c.*``. The correction meets t
 whose correction alone (a zero base, continuing the block before as a quant stream's blocks do) codes it smaller
 than the model and its correction takes that, and holds no model sections (:func:`~.wrap.on_model`). A
 block's IK takes the compiled kernels when numba is installed, whatever the block's length
-(:func:`.ikjit.stream_block`), in the encoder and in every decoder alike.
+(:func:`.ikjit.any_length`), in the encoder and in every decoder alike.
 """
 
 from __future__ import annotations
@@ -42,7 +42,7 @@ def encode_block(motion: AnyMotion, options: dict[str, Any]) -> Sections:
     ctx = block_of(motion)
     assert ctx is not None
     kept = ctx.cache["stream"]
-    with ikjit.stream_block():
+    with ikjit.any_length():
         if ctx.cache.get("key") or KEPT not in kept:
             model = fit_shared([_prepare(ctx.clip, options)], options)
             kept[KEPT] = (model, model.sections())
@@ -68,7 +68,7 @@ def decode_block(sections: Sections, header: ClipHeader) -> AnyMotion:
     """A stream block coded against its interval's model."""
     shared = {k: sections[k] for k in ("m", "p")}
     own = {k: v for k, v in sections.items() if k not in shared}
-    with ikjit.stream_block():
+    with ikjit.any_length():
         return decode_member(shared, own, header)
 
 
