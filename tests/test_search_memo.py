@@ -48,7 +48,7 @@ def test_a_pga_search_lets_its_memo_go() -> None:
     assert len(log) > 2 and sections["data"] and not p.memo
 
 
-def test_bound_search_packs_the_correction_it_keeps_as_a_fit_does() -> None:
+def test_bound_search_packs_the_correction_it_keeps_as_a_fit_does(monkeypatch: pytest.MonkeyPatch) -> None:
     """A distortion target's bound search (several fits, packed lazily): the correction it returns has the sections
     of an eager fit at its bound, and those sections are packed only when asked for."""
     m = mocapz.load(data_path("cmu/bvh/05_02.bvh")).slice(0, 600)
@@ -63,11 +63,8 @@ def test_bound_search_packs_the_correction_it_keeps_as_a_fit_does() -> None:
         fits.append(cor)
         return cor
 
-    search_module.fit = counted
-    try:
-        cor = bound_search(clip, clip.zero_base(), Target(max_distortion=0.36), 16.0, clip.levels - 1)
-    finally:
-        search_module.fit = real
+    monkeypatch.setattr(search_module, "fit", counted)
+    cor = bound_search(clip, clip.zero_base(), Target(max_distortion=0.36), 16.0, clip.levels - 1)
     assert len(fits) >= 2 and all(callable(f.made) for f in fits if f is not cor)  # the others never packed
     eager = fit(clip, clip.zero_base(), cor.bound, 16.0, clip.levels - 1)
     assert not callable(eager.made)
@@ -75,7 +72,8 @@ def test_bound_search_packs_the_correction_it_keeps_as_a_fit_does() -> None:
     assert not callable(cor.made)  # packed once asked, and kept
 
 
-def test_a_short_clips_search_screened_with_the_compiled_ik_chooses_what_the_decoder_would() -> None:
+def test_a_short_clips_search_screened_with_the_compiled_ik_chooses_what_the_decoder_would(
+        monkeypatch: pytest.MonkeyPatch) -> None:
     """A clip under ikjit.LAZY_FRAMES (its values the NumPy IK's): the candidates' errors estimated with the compiled
     IK, the choice checked with the decoder; the same settings and sections as a search decoding every candidate
     with the decoder, and the file meets the target when decoded."""
@@ -90,12 +88,8 @@ def test_a_short_clips_search_screened_with_the_compiled_ik_chooses_what_the_dec
     assert ratecontrol.screens(p)
     screened = search(p, {}, target)
     assert any("checked on all frames" in x for x in screened[2])
-    real = ratecontrol.screens
-    ratecontrol.screens = lambda p: False  # type: ignore[assignment]
-    try:
-        plain = search(prepare(m), {}, target)
-    finally:
-        ratecontrol.screens = real
+    monkeypatch.setattr(ratecontrol, "screens", lambda p: False)
+    plain = search(prepare(m), {}, target)
     assert screened[0] == plain[0] and screened[1] == plain[1]
     assert not any("checked on all frames" in x for x in plain[2])
     assert target.met(evaluate_settings(prepare(m), screened[1])[2])
