@@ -16,6 +16,7 @@ from mocapz.codecs.correction.fit import Clip, Correction, fit
 from mocapz.codecs.target import Target
 
 SEARCH_FITS = 10  # fits a distortion or ARMS target's bound search makes at most
+FLAT = 0.25  # a figure growing by less than this power of the bound is flat (:func:`_flat`): the base's own errors
 LOOSEST = 8.0  # where the model alone meets the target, the bound goes up to this many times its largest error
 RELAXES = (16.0,)  # relax_by tried: how far errors fall short of the worst case (8, 11.3, 22.6 and 32 gave
 # larger files on the CMU clips)
@@ -215,7 +216,9 @@ def bound_search(clip: Clip, base: np.ndarray, target: Target, relax_by: float, 
                  start: float | None = None, give_up: float = math.inf) -> Correction:
     """The correction with the largest bound meeting ``target`` (the bound is at most ``max_error``; for a
     distortion or ARMS target, secant steps in log space inside the bracket of met and missed bounds, at most
-    :data:`SEARCH_FITS` fits, from ``start`` when given: a bound found with other settings). ``give_up``: with a
+    :data:`SEARCH_FITS` fits, from ``start`` when given: a bound found with other settings; where two met bounds
+    show the figures flat, :func:`_flat`, straight to the largest bound allowed: the base alone meets the target,
+    the bound only decides what the correction adds). ``give_up``: with a
     max error target alone, bytes the correction is not worth having at (another base's file is no larger):
     :func:`.fit.fit` stops after its first round where that round's integers reach them."""
     e_cap = target.max_error
@@ -242,16 +245,21 @@ def bound_search(clip: Clip, base: np.ndarray, target: Target, relax_by: float, 
     best: Correction | None = None  # the largest bound met so far
     low_fail = math.inf  # the smallest bound missed so far
     cur = fit(clip, base, e, relax_by, depth, lazy=True)  # only the correction kept is packed
+    met_before: tuple[float, float] | None = None  # the last met fit's (bound, score)
     for _ in range(SEARCH_FITS):
         score = target.score(cur.errors)
+        flat = False
         if score <= 1:
             best = cur if best is None or cur.bound > best.bound else best
+            flat = met_before is not None and _flat(met_before, (cur.bound, score))
+            met_before = (cur.bound, score)
         else:
             low_fail = min(low_fail, cur.bound)
-        # secant in log space (the figures grow about linearly with the bound), kept inside the bracket
+        # secant in log space (the figures grow about linearly with the bound), kept inside the bracket; where
+        # they hardly grow with it (the model's own errors: FLAT), straight to the largest bound allowed
         nxt = cur.bound * float(np.clip(0.95 / max(score, 1e-9), 0.25, 4.0))
         if e_cap is not None:
-            nxt = min(nxt, e_cap)
+            nxt = e_cap if flat else min(nxt, e_cap)
         lo = best.bound if best is not None else 0.0
         if not lo < nxt < low_fail:
             nxt = math.sqrt(lo * low_fail) if lo > 0 and math.isfinite(low_fail) else (
@@ -262,3 +270,12 @@ def bound_search(clip: Clip, base: np.ndarray, target: Target, relax_by: float, 
         del cur  # let go before the next fit (unless it is the best so far)
         cur = fit(clip, base, nxt, relax_by, depth, lazy=True)
     return best if best is not None else cur
+
+
+def _flat(a: tuple[float, float], b: tuple[float, float]) -> bool:
+    """Whether two met fits' ``(bound, score)`` show the target's figures hardly growing with the bound (by less
+    than :data:`FLAT` of it, in log space): what is left of them is the base's own errors."""
+    (b0, s0), (b1, s1) = sorted((a, b))
+    if not (b1 > b0 > 0 and s0 > 0 and s1 > 0):
+        return False
+    return math.log(s1 / s0) < FLAT * math.log(b1 / b0)
