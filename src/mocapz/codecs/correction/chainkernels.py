@@ -65,6 +65,22 @@ def _mul_t(a: np.ndarray, b: np.ndarray, out: np.ndarray) -> None:
 
 
 @jit
+def _mul_t_row(a, f: int, b: np.ndarray, out: np.ndarray) -> None:
+    """``a[f].T @ b`` (``a`` ``(frames, 3, 3)``), indexed in place: no view of ``a[f]`` made per frame."""
+    for i in range(3):
+        for k in range(3):
+            out[i, k] = a[f, 0, i] * b[0, k] + a[f, 1, i] * b[1, k] + a[f, 2, i] * b[2, k]
+
+
+@jit
+def _mul_rows(a, f: int, b: np.ndarray, out) -> None:
+    """``out[f] = a[f] @ b`` (``a``, ``out`` ``(frames, 3, 3)``), indexed in place: the same sums as :func:`mul33`."""
+    for i in range(3):
+        for j in range(3):
+            out[f, i, j] = a[f, i, 0] * b[0, j] + a[f, i, 1] * b[1, j] + a[f, i, 2] * b[2, j]
+
+
+@jit
 def place(gp, p, j: int, parent: int, trans) -> None:
     """Decoded position of joint ``j`` from its local translations ``trans`` ``(frames, 3)``."""
     for f in range(trans.shape[0]):
@@ -120,7 +136,7 @@ def goal_angles(gp, p, j: int, parent: int, goal_rot, positions, aim: int, cos_m
                     mul33(turn, goal, tmp)
                     goal[:, :] = tmp
         if parent >= 0:
-            _mul_t(gp[f], goal, r)
+            _mul_t_row(gp, f, goal, r)
         else:
             r[:, :] = goal
         if turned:
@@ -167,6 +183,6 @@ def compose(gj, gp, parent: int, values, scale: float, axes, axis, turned: bool,
                 for b in range(3):
                     loc[a, b] = tmp[a, 0] * axis[b, 0] + tmp[a, 1] * axis[b, 1] + tmp[a, 2] * axis[b, 2]
         if parent >= 0:
-            mul33(gp[f], loc, gj[f])
+            _mul_rows(gp, f, loc, gj)
         else:
             gj[f, :, :] = loc

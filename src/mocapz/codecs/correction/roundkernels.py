@@ -64,16 +64,18 @@ def _lift(x, cols, t0, group, levels, lo, halves, lv: int, n: int, factors, step
     if m == 0:
         return
     todo = todo[:m]
-    xp = np.empty((n, m))
-    tp = np.empty((n, m))
-    yb = np.zeros((n, m))
-    qb = np.zeros((n, m), dtype=np.int64)
-    for r in range(n):
-        src = min(max(r - pre, 0), frames - 1)  # the grid's row before a continued clip, the padding after
-        for k in range(m):
-            c = todo[k]
+    # column-major work arrays: the detail levels run down each column (and the residual is column-major)
+    xp = np.empty((m, n)).T
+    tp = np.empty((m, n)).T
+    yb = np.zeros((m, n)).T
+    qb = np.zeros((m, n), dtype=np.int64).T
+    for k in range(m):
+        c = todo[k]
+        g = group[c]
+        for r in range(n):
+            src = min(max(r - pre, 0), frames - 1)  # the grid's row before a continued clip, the padding after
             xp[r, k] = x[src, c]
-            tv = t0[c] * halves[levels[src, group[c]] - lo]
+            tv = t0[c] * halves[levels[src, g] - lo]
             tp[r, k] = BIG if tv > BIG else tv
     span = 1 << lv
     knots = (n - 1) // span + 1
@@ -102,16 +104,15 @@ def _lift(x, cols, t0, group, levels, lo, halves, lv: int, n: int, factors, step
         for k in range(m):
             ghost[g, k] = prefix[todo[k], 1 + g]
     details(xp, tp, yb, qb, lv, factors, step_scale, knots, ghost)
-    for f in range(frames):
-        for k in range(m):
-            c = todo[k]
+    for k in range(m):
+        c = todo[k]
+        for f in range(frames):
             v = yb[f + pre, k]
             if again and v != y[f, c]:
                 changed[f, c - start] = True
             y[f, c] = v
-    for r in range(n):
-        for k in range(m):
-            q[r, todo[k]] = qb[r, k]
+        for r in range(n):
+            q[r, c] = qb[r, k]
 
 
 @jit
