@@ -6,6 +6,7 @@ number."""
 
 from __future__ import annotations
 
+import copy
 from collections.abc import Iterator
 
 import numpy as np
@@ -120,3 +121,26 @@ def test_the_kernel_gives_numpys_bits_on_an_odd_skeleton(numpy_path: None) -> No
     assert np.array_equal(_bits(pos), _bits(want_pos)) and np.array_equal(_bits(rot), _bits(want_rot))
     assert np.array_equal(_bits(alone), _bits(want_pos))
     assert np.array_equal(_bits(_local(sk, ch)), _bits(kinematics.local_rotations(sk, ch)))
+
+
+def test_a_skeleton_changed_in_place_is_not_given_its_old_tables() -> None:
+    """The kernels' tables are made once per skeleton and kept by what they are made of: the same object asked
+    again gets the kept ones; its offsets, channels or end sites changed in place, new ones, and the compiled
+    positions follow the NumPy path's."""
+    m = mocapz.load(data_path("cmu/bvh/09_06.bvh")).slice(0, 40)
+    sk = copy.deepcopy(m.skeleton)  # changed below: not the loaded clip's (a cache may share it)
+    first = kinematics._tables(sk)
+    assert kinematics._tables(sk) is first
+    sk.offsets[3] *= 2.0  # a longer bone
+    sk.end_sites[0] = (sk.end_sites[0][0], np.asarray(sk.end_sites[0][1]) + 1.0, sk.end_sites[0][2])
+    second = kinematics._tables(sk)
+    assert second is not first
+    got = kinematics.forward_positions(sk, m.channels)
+    before = _jit.set_enabled(False)
+    try:
+        want = kinematics.forward_positions(sk, m.channels)
+    finally:
+        _jit.set_enabled(before)
+    assert np.array_equal(_bits(got), _bits(want))
+    sk.channels[0] = tuple(reversed(sk.channels[0]))  # the root's channels in another order
+    assert kinematics._tables(sk) is not second

@@ -169,8 +169,28 @@ def _kernel() -> Any:
     return aot.kernels("fk") if _jit.enabled() else None
 
 
+TABLES_KEPT = 16  # skeletons whose tables are kept (a rate search asks for one skeleton's a hundred times)
+_TABLES: dict[tuple[Any, ...], tuple[Any, ...]] = {}
+
+
 def _tables(skeleton: Skeleton) -> tuple[Any, ...]:
-    """:func:`.fkkernels.forward`'s arguments after the channels, from ``scale`` to ``end_off``."""
+    """:func:`.fkkernels.forward`'s arguments after the channels, from ``scale`` to ``end_off``: made once per
+    skeleton, kept by what they are made of (a skeleton changed in place is another key; never written to)."""
+    assert skeleton.axis is not None
+    key = (skeleton.angle_unit, np.asarray(skeleton.parents).tobytes(), np.asarray(skeleton.offsets).tobytes(),
+           np.asarray(skeleton.axis).tobytes(), tuple(map(tuple, skeleton.channels)), tuple(skeleton.rotation_order),
+           tuple((int(j), np.asarray(o).tobytes()) for j, o, _ in skeleton.end_sites))
+    made = _TABLES.pop(key, None)
+    if made is None:
+        made = _make_tables(skeleton)
+    _TABLES[key] = made  # the most recent last
+    while len(_TABLES) > TABLES_KEPT:
+        del _TABLES[next(iter(_TABLES))]
+    return made
+
+
+def _make_tables(skeleton: Skeleton) -> tuple[Any, ...]:
+    """:func:`_tables`, made."""
     n = skeleton.n_joints
     rot_cols, rot_axes = np.zeros((n, 3), dtype=np.int64), np.zeros((n, 3), dtype=np.int64)
     n_rot = np.zeros(n, dtype=np.int64)
@@ -186,10 +206,10 @@ def _tables(skeleton: Skeleton) -> tuple[Any, ...]:
             if c.endswith("position"):
                 pos_cols[j, "XYZ".index(c[0])] = sl.start + k
     assert skeleton.axis is not None
-    axis = np.ascontiguousarray(skeleton.axis, dtype=np.float64)
+    axis = np.array(skeleton.axis, dtype=np.float64, order="C")  # copies: kept, they must not follow the skeleton
     turned = np.array([not np.array_equal(axis[j], np.eye(3)) for j in range(n)], dtype=np.bool_)
     ends = skeleton.end_sites
-    return (np.pi / 180.0 if skeleton.angle_unit == "deg" else 1.0, np.asarray(skeleton.parents, dtype=np.int64),
-            rot_cols, rot_axes, n_rot, turned, axis, pos_cols, np.ascontiguousarray(skeleton.offsets, dtype=np.float64),
+    return (np.pi / 180.0 if skeleton.angle_unit == "deg" else 1.0, np.array(skeleton.parents, dtype=np.int64),
+            rot_cols, rot_axes, n_rot, turned, axis, pos_cols, np.array(skeleton.offsets, dtype=np.float64, order="C"),
             np.array([j for j, _, _ in ends], dtype=np.int64),
             np.array([o for _, o, _ in ends], dtype=np.float64).reshape(len(ends), 3))

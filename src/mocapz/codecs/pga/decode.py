@@ -17,7 +17,7 @@ from mocapz.codecs.pga.clip import targets_in_root_frame
 from mocapz.codecs.pga.effectors import effector_points
 from mocapz.codecs.pga.ik import IKProblem, make_problem
 from mocapz.codecs.pga.iksolve import pose, solve_fast
-from mocapz.codecs.pga.joints import check_skeleton, inner_joints, position_columns
+from mocapz.codecs.pga.joints import check_skeleton, inner_joints, position_columns, skeleton_scale
 from mocapz.codecs.pga.model import PGAModel
 from mocapz.codecs.pga.outliers import decode_outliers, kept_frames
 from mocapz.codecs.pga.packing import once, split_streams
@@ -188,9 +188,13 @@ def decode_streams(skeleton: Skeleton, s: PGASettings, sections: dict[str, bytes
         coords = decoded(pos, s.coord_step, s.lod_coords)
         pos += 1
     other = decoded(pos, s.pos_step, 0) if other_cols.size else np.zeros((f, 0))
-    problem = make_problem(skeleton, model, effectors, other)
-    if s.eff_mode == 1 and coords is not None:
-        targets = problem.forward(coords)[0] + eff
+    problem = make_problem(skeleton, model, effectors, other,
+                           once(memo, ("skeleton scale",), lambda: skeleton_scale(skeleton)))
+    if s.eff_mode == 1 and coords is not None:  # the coded pose's effectors, kept by what they are a function of
+        coded = once(memo, ("coded effectors", *blobs[:2], s.k, s.basis_bits, s.mean_step, effectors.tobytes(),
+                            blobs[5], s.coord_step, s.lod_coords, *((blobs[6], s.pos_step) if other_cols.size else ())),
+                     lambda: problem.forward(coords)[0])
+        targets = coded + eff
     else:
         targets = targets_in_root_frame(eff, root_pos, root_rot)
     return Decoded(model, effectors, problem, root_pos, root_rot, targets, coords, other)

@@ -13,7 +13,7 @@ from mocapz.codecs.pga import lifting
 from mocapz.codecs.pga.clip import Clip, analyse, targets_in_root_frame
 from mocapz.codecs.pga.effectors import effector_points
 from mocapz.codecs.pga.ik import make_problem
-from mocapz.codecs.pga.joints import check_skeleton, inner_joints
+from mocapz.codecs.pga.joints import check_skeleton, inner_joints, skeleton_scale
 from mocapz.codecs.pga.model import PGAModel, coordinates, fit_pga
 from mocapz.codecs.pga.outliers import detect_outliers, encode_outliers, kept_frames
 from mocapz.codecs.pga.packing import once, pack_streams
@@ -95,9 +95,17 @@ def encode_prepared(p: Prepared, s: PGASettings, memo: dict[Hashable, Any] | Non
             mats.append((("no effectors",), np.zeros((1, 0), dtype=np.int64)))
         elif s.eff_mode == 1 and coords_rec is not None:
             # residual of the true root-frame effector positions against those the coded pose gives
-            def resid(rec: np.ndarray = coords_rec) -> np.ndarray:
-                problem = make_problem(p.motion.skeleton, model_q, p.effectors, other_rec)
-                return (p.eff_local - problem.forward(rec)[0]).reshape(n, -1)
+            def coded(rec: np.ndarray = coords_rec) -> np.ndarray:  # the effectors of the coded pose
+                sk = p.motion.skeleton
+                problem = make_problem(sk, model_q, p.effectors, other_rec,
+                                       once(memo, ("skeleton scale",), lambda: skeleton_scale(sk)))
+                return problem.forward(rec)[0]
+
+            moved = other[1:] if clip.other_pos.shape[1] else ()  # the other position channels, where coded
+
+            def resid() -> np.ndarray:
+                pose = once(memo, ("coded effectors", *coords[1:], *moved), coded)
+                return (p.eff_local - pose).reshape(n, -1)
 
             key = ("effector residual", *coords[1:], s.pos_step, s.lod_effectors)
             mats.append((key, rn(key, resid, s.pos_step, s.lod_effectors)[0]))

@@ -112,9 +112,11 @@ class IKProblem:
         return jac
 
 
-def make_problem(skeleton: Skeleton, model: PGAModel, effectors: np.ndarray, other: np.ndarray) -> IKProblem:
+def make_problem(skeleton: Skeleton, model: PGAModel, effectors: np.ndarray, other: np.ndarray,
+                 scale: float | None = None) -> IKProblem:
     """The IK set-up for FK points ``effectors`` ``(e,)``, with the non-root position channels ``(F, p)``
-    (file units; as decoded, if any) as translations."""
+    (file units; as decoded, if any) as translations; ``scale``: the skeleton's :func:`.joints.skeleton_scale`,
+    where the caller has it (a rate search's, made once)."""
     n = other.shape[0]
     _, other_cols = position_columns(skeleton)
     if other_cols.size:
@@ -125,7 +127,7 @@ def make_problem(skeleton: Skeleton, model: PGAModel, effectors: np.ndarray, oth
     else:
         trans = skeleton.offsets
     problem = IKProblem(skeleton, model, effectors, np.broadcast_to(np.eye(3), (skeleton.n_joints, 3, 3)),
-                        trans, skeleton_scale(skeleton))
+                        trans, skeleton_scale(skeleton) if scale is None else scale)
     return problem
 
 
