@@ -75,8 +75,14 @@ def test_continued_block(rel: str, frames: int | None, kernels_always: None) -> 
     _equal(*_both(clip, clip.residual(base), base, bounds.tolerances(t0, clip.layout, levels), 3, prefix))
 
 
-def test_rounds_redone_on_what_moved_match(kernels_always: None) -> None:
-    """Calls redoing the one before (tolerances tightened on a few frames) give the loop's bits too."""
+@pytest.mark.parametrize("rotations_kept", [True, False])
+def test_rounds_redone_on_what_moved_match(kernels_always: None, rotations_kept: bool,
+                                           monkeypatch: pytest.MonkeyPatch) -> None:
+    """Calls redoing the one before (tolerances tightened on a few frames) give the loop's bits too: with every
+    joint's rotations kept from a call to the next (composed again only where they may have moved) and without
+    (a clip over :data:`.chainround.KEPT_BYTES`)."""
+    if not rotations_kept:
+        monkeypatch.setattr(chainround, "KEPT_BYTES", 0)
     clip, t0, levels = _clip(*CLIPS[0])
     assert clip.chain is not None
     base = np.zeros_like(clip.values)
@@ -85,14 +91,17 @@ def test_rounds_redone_on_what_moved_match(kernels_always: None) -> None:
     for plan in (kept, None):
         clip.chain.round_plan, lv = plan, levels.copy()
         x = clip.residual(base)
-        rng, got = np.random.default_rng(11), []
+        rng, got, held = np.random.default_rng(11), [], []
         for _ in range(4):
             got.append(tuple(a.copy() for a in clip.chain.quantise(x, base, bounds.tolerances(t0, clip.layout, lv),
                                                                    4, 0.85)))
+            held.append(None if clip.chain.last is None else clip.chain.last.rot)
             for f in rng.integers(0, len(lv), size=6):
                 lv[max(0, f - 3): f + 3, rng.integers(0, lv.shape[1])] += 1
         clip.chain.forget()
         runs.append(got)
+        if plan is not None:  # one array of rotations updated in place from call to call, or none
+            assert all(h is held[0] for h in held) and (held[0] is not None) == rotations_kept
     clip.chain.round_plan = kept
     for a, b in zip(*runs, strict=True):
         _equal(a, b)

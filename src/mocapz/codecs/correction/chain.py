@@ -142,11 +142,12 @@ class Chain:
             else None
         if round_kern is not None:  # the whole round in one compiled call: the same numbers
             before = None if not again or prev is None or prev.q is None or prev.t0 is None \
-                or not np.array_equal(prev.t0, tol.t0) else (prev.q, prev.levels)  # type: ignore[union-attr]
-            q, pos = chainround.quantise(self, round_kern, x, base, tol, levels, shrink,  # type: ignore[arg-type]
-                                         prefix, y, before, COS_TURN)
+                or not np.array_equal(prev.t0, tol.t0) else (prev.q, prev.levels, prev.rot)  # type: ignore[union-attr]
+            last = prev = None  # its rotations are updated in place, or let go before new ones are made
+            q, pos, rot = chainround.quantise(self, round_kern, x, base, tol, levels, shrink,  # type: ignore[arg-type]
+                                              prefix, y, before, COS_TURN)
             self.last = _Last(x, base, (levels, shrink), y, q, tol.t0.copy(),  # type: ignore[union-attr]
-                              np.array(tol.levels, copy=True))  # type: ignore[union-attr]
+                              np.array(tol.levels, copy=True), rot)  # type: ignore[union-attr]
             return q, y, pos
         _, n = lifting.plan(frames + (prefix is not None), levels)
         q = np.zeros((n, cols), dtype=np.int64)
@@ -340,6 +341,7 @@ class _Last:
     q: np.ndarray | None = None  # the one-call round's: its integers (updated in place by the next call)
     t0: np.ndarray | None = None  # and the tolerances they were made with
     levels: np.ndarray | None = None
+    rot: np.ndarray | None = None  # and every joint's decoded global rotations, where kept (:mod:`.chainround`)
 
 
 _NO_PARENT = np.empty((0, 3, 3))  # a root's parent rotations (never read)

@@ -18,6 +18,8 @@ from mocapz.codecs.correction import lifting
 from mocapz.codecs.correction.bounds import ColumnTolerances
 
 Chain = Any  # a :class:`.chain.Chain` (which imports this module)
+KEPT_BYTES = 64 << 20  # every joint's decoded rotations kept from a round to the next up to this size (a CMU
+# skeleton's for 30,000 frames): a round composes again only the frames where they may have moved
 
 
 @dataclass(frozen=True)
@@ -104,13 +106,16 @@ def usable(chain: Chain, x: np.ndarray, base: np.ndarray, tol: object) -> bool:
 
 
 def quantise(chain: Chain, kern: ModuleType, x: np.ndarray, base: np.ndarray, tol: ColumnTolerances, levels: int,
-             shrink: float, prefix: np.ndarray | None, y: np.ndarray, before: tuple[np.ndarray, np.ndarray] | None,
-             cos_turn: float) -> tuple[np.ndarray, np.ndarray]:
+             shrink: float, prefix: np.ndarray | None, y: np.ndarray,
+             before: tuple[np.ndarray, np.ndarray, np.ndarray | None] | None,
+             cos_turn: float) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
     """:meth:`.chain.Chain.quantise`'s round in one call: fills ``y`` ``(frames, columns)`` and returns the integers
-    ``(n, columns)`` and the decoded positions ``(frames, points, 3)``. ``before``: on a call redoing the one before
-    (the same ``x``, ``base``, ``t0`` and column groups; ``y`` holds its decoded residual), its integers (updated in
-    place and returned) and its tolerance levels ``(frames, groups)``: the columns whose tolerances and residual are
-    unchanged keep their coding."""
+    ``(n, columns)``, the decoded positions ``(frames, points, 3)`` and every joint's decoded global rotations
+    ``(joints, frames, 3, 3)`` where they are kept for the next call (at most :data:`KEPT_BYTES`; else None).
+    ``before``: on a call redoing the one before (the same ``x``, ``base``, ``t0`` and column groups; ``y`` holds
+    its decoded residual), its integers (updated in place and returned), its tolerance levels ``(frames, groups)``
+    and its rotations (or None): the columns whose tolerances and residual are unchanged keep their coding, and the
+    joints' rotations are composed again only on the frames where they may have moved."""
     rp = chain.round_plan
     assert rp is not None
     sk = chain.skeleton
@@ -127,17 +132,23 @@ def quantise(chain: Chain, kern: ModuleType, x: np.ndarray, base: np.ndarray, to
         q = np.zeros((n, cols), dtype=np.int64, order="F" if x.flags.f_contiguous and cols > 1 else "C")
         dirty = np.ones(tol.levels.shape[1], dtype=np.bool_)
     pos = np.empty((frames, sk.n_points, 3))
-    slots = np.empty((rp.n_slots, frames, 3, 3))
+    a = rp.arrays
+    each = (sk.n_joints, frames, 3, 3)  # a slot per joint, kept for the next round where it is small enough
+    kept = None if before is None or before[2] is None or before[2].shape != each else before[2]
+    if kept is None and 72 * sk.n_joints * frames <= KEPT_BYTES:
+        kept = np.empty(each)
+    slots = np.empty((rp.n_slots, frames, 3, 3)) if kept is None else kept
+    slot = a["slot"] if kept is None else np.arange(sk.n_joints, dtype=np.int64)
     ends = np.empty((rp.n_ends, frames, 3, 3))
     moved = np.empty((2, sk.n_joints, frames), dtype=np.bool_)
-    a = rp.arrays
+    reused = again and before is not None and kept is not None and kept is before[2]  # the last call's, in place
     kern.run(x, base, tol.t0, tol.group, tol.levels, lo, halves, lv, n, factors, lifting.STEP, pre,
              np.zeros((0, 1)) if prefix is None else np.asarray(prefix, dtype=np.float64).reshape(cols, -1), y, q, pos,
-             slots, ends, moved[0], moved[1], again, dirty, a["parents"], a["starts"], a["stops"], a["plain_ptr"],
-             a["plain_idx"], a["feedback"], a["rot_cols"], a["euler3"], a["e3_cols"], a["all_cols"], a["axes"],
-             a["axis_frames"], a["turned"], a["aim"], a["ijk"], a["signs"], a["goal_of"], chain.goal_all,
-             chain.positions, chain.values, a["pos_axis"], a["offsets"], a["slot"], a["end_slot"], chain.scale,
+             slots, ends, moved[0], moved[1], again, reused, dirty, a["parents"], a["starts"], a["stops"],
+             a["plain_ptr"], a["plain_idx"], a["feedback"], a["rot_cols"], a["euler3"], a["e3_cols"], a["all_cols"],
+             a["axes"], a["axis_frames"], a["turned"], a["aim"], a["ijk"], a["signs"], a["goal_of"], chain.goal_all,
+             chain.positions, chain.values, a["pos_axis"], a["offsets"], slot, a["end_slot"], chain.scale,
              chain.period, cos_turn)
     for e, (j, off, _) in enumerate(sk.end_sites):
         pos[:, sk.n_joints + e] = pos[:, j] + ends[a["end_slot"][j]] @ np.asarray(off)
-    return q, pos
+    return q, pos, kept

@@ -13,7 +13,8 @@ positions to the bit (tests/test_correction_round.py). End sites are left to the
 Shapes: ``x``, ``base``, ``y``, ``values`` ``(frames, columns)`` (file units, angles in the file's angle unit);
 ``q`` ``(n, columns)`` int64 (``n`` the padded frames of :func:`~.lifting.plan`); ``pos``, ``positions``
 ``(frames, points, 3)``; ``slots`` ``(live, frames, 3, 3)`` the decoded global rotations of the joints still
-needed (a joint's slot ``slot[j]``); ``ends`` ``(joints with end sites, frames, 3, 3)`` theirs, returned.
+needed (a joint's slot ``slot[j]``; or a slot per joint, kept from a round to the next); ``ends`` ``(joints with
+end sites, frames, 3, 3)`` theirs, returned.
 """
 
 # ruff: noqa: ANN001, PLR0913
@@ -129,7 +130,8 @@ def _any(changed, cols, start: int, again: bool, out) -> None:
 
 @jit
 def run(x, base, t0, group, levels, lo: int, halves, lv: int, n: int, factors, step_scale: float, pre: int,
-        prefix, y, q, pos, slots, ends, moved_p, moved_g, again: bool, dirty_groups, parents, starts, stops, plain_ptr,
+        prefix, y, q, pos, slots, ends, moved_p, moved_g, again: bool, kept: bool, dirty_groups, parents, starts, stops,
+        plain_ptr,
         plain_idx, feedback, rot_cols, euler3, e3_cols, all_cols, axes, axis_frames, turned, aim, ijk, signs,
         goal_of, goal_all, positions, values, pos_axis, offsets, slot, end_slot, scale: float, period: float,
         cos_turn: float) -> None:
@@ -138,7 +140,9 @@ def run(x, base, t0, group, levels, lo: int, halves, lv: int, n: int, factors, s
     against the goal (on the frames where something above them moved, when ``again``), ``moved_p`` and
     ``moved_g`` ``(joints, frames)`` where each joint's decoded position and global rotation may have moved. On a
     call redoing the one before (``again``: ``y`` and ``q`` hold its coding), a column is coded again only where
-    its group's tolerances changed (``dirty_groups`` ``(groups,)``) or its residual against the goal did.
+    its group's tolerances changed (``dirty_groups`` ``(groups,)``) or its residual against the goal did; and
+    where ``slots`` hold every joint's decoded global rotations as that call left them (``kept``: a slot per
+    joint), a joint's are composed again only on the frames where they may have moved (``moved_g``).
 
     Per joint: ``parents``, ``starts``/``stops`` (its columns), ``plain_idx[plain_ptr[j]:plain_ptr[j + 1]]`` the
     columns coded against their own original, ``feedback`` and ``rot_cols`` ``(joints, 3)``, ``euler3`` and
@@ -201,14 +205,23 @@ def run(x, base, t0, group, levels, lo: int, halves, lv: int, n: int, factors, s
         for f in range(frames):
             moved_g[j, f] = own[f] if p < 0 else own[f] or moved_g[p, f]
         gj = slots[slot[j]]
+        rows = every
+        if again and kept:  # the others' are the last call's, in their slot
+            count = 0
+            for f in range(frames):
+                if moved_g[j, f]:
+                    picked[count] = f
+                    count += 1
+            rows = picked[:count]
         if euler3[j]:
             for a in range(3):
                 col = e3_cols[j, a]
                 for f in range(frames):
                     vals[f, a] = base[f, col] + y[f, col]
-            compose(gj, gp, p, vals, scale, axes[j], axis_frames[j], turned[j], every)
+            compose(gj, gp, p, vals, scale, axes[j], axis_frames[j], turned[j], rows)
         else:  # no rotation channel: the parent's rotation times the identity, as NumPy's product gives it
-            for f in range(frames):
+            for r in range(rows.size):
+                f = rows[r]
                 for a in range(3):
                     for b in range(3):
                         gj[f, a, b] = gp[f, a, 0] * eye[0, b] + gp[f, a, 1] * eye[1, b] + gp[f, a, 2] * eye[2, b] \
