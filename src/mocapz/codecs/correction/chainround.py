@@ -135,7 +135,7 @@ def quantise(chain: Chain, kern: ModuleType, x: np.ndarray, base: np.ndarray, to
     a = rp.arrays
     each = (sk.n_joints, frames, 3, 3)  # a slot per joint, kept for the next round where it is small enough
     kept = None if before is None or before[2] is None or before[2].shape != each else before[2]
-    if kept is None and 72 * sk.n_joints * frames <= KEPT_BYTES:
+    if kept is None and 8 * int(np.prod(each)) <= KEPT_BYTES:
         kept = np.empty(each)
     slots = np.empty((rp.n_slots, frames, 3, 3)) if kept is None else kept
     slot = a["slot"] if kept is None else np.arange(sk.n_joints, dtype=np.int64)

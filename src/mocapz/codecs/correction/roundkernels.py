@@ -130,11 +130,10 @@ def _any(changed, cols, start: int, again: bool, out) -> None:
 
 @jit
 def run(x, base, t0, group, levels, lo: int, halves, lv: int, n: int, factors, step_scale: float, pre: int,
-        prefix, y, q, pos, slots, ends, moved_p, moved_g, again: bool, kept: bool, dirty_groups, parents, starts, stops,
-        plain_ptr,
-        plain_idx, feedback, rot_cols, euler3, e3_cols, all_cols, axes, axis_frames, turned, aim, ijk, signs,
-        goal_of, goal_all, positions, values, pos_axis, offsets, slot, end_slot, scale: float, period: float,
-        cos_turn: float) -> None:
+        prefix, y, q, pos, slots, ends, moved_p, moved_g, again: bool, kept: bool, dirty_groups, parents, starts,
+        stops, plain_ptr, plain_idx, feedback, rot_cols, euler3, e3_cols, all_cols, axes, axis_frames, turned, aim,
+        ijk, signs, goal_of, goal_all, positions, values, pos_axis, offsets, slot, end_slot, scale: float,
+        period: float, cos_turn: float) -> None:
     """One round of the closed loop over every joint (:meth:`~.chain.Chain.quantise`): ``y``, ``q``, the joints'
     rows of ``pos`` and ``ends`` filled, the feedback joints' rotation columns of ``x`` set to their residual
     against the goal (on the frames where something above them moved, when ``again``), ``moved_p`` and

@@ -191,7 +191,7 @@ def decode_streams(skeleton: Skeleton, s: PGASettings, sections: dict[str, bytes
     problem = make_problem(skeleton, model, effectors, other,
                            once(memo, ("skeleton scale",), lambda: skeleton_scale(skeleton)))
     if s.eff_mode == 1 and coords is not None:  # the coded pose's effectors, kept by what they are a function of
-        coded = once(memo, ("coded effectors", *blobs[:2], s.k, s.basis_bits, s.mean_step, effectors.tobytes(),
+        coded = once(memo, ("decoded pose's effectors", *blobs[:2], s.k, s.basis_bits, s.mean_step, effectors.tobytes(),
                             blobs[5], s.coord_step, s.lod_coords, *((blobs[6], s.pos_step) if other_cols.size else ())),
                      lambda: problem.forward(coords)[0])
         targets = coded + eff

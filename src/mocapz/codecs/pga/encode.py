@@ -104,7 +104,7 @@ def encode_prepared(p: Prepared, s: PGASettings, memo: dict[Hashable, Any] | Non
             moved = other[1:] if clip.other_pos.shape[1] else ()  # the other position channels, where coded
 
             def resid() -> np.ndarray:
-                pose = once(memo, ("coded effectors", *coords[1:], *moved), coded)
+                pose = once(memo, ("coded pose's effectors", *coords[1:], *moved), coded)
                 return (p.eff_local - pose).reshape(n, -1)
 
             key = ("effector residual", *coords[1:], s.pos_step, s.lod_effectors)
