@@ -46,7 +46,8 @@ def test_a_model_meeting_the_target_alone_is_searched_in_a_few_fits(monkeypatch:
     data = mocapz.compress(m, "pga", max_arms="5mm")
     fast = list(bounds)
     assert 2 <= len(fast) <= 5 and fast[-1] == pytest.approx(LOOSEST * fast[0])  # the first: the model's largest
-    assert mocapz.evaluate(m, mocapz.decompress(data)).arms <= 0.5 + 1e-9
+    report = mocapz.evaluate(m, mocapz.decompress(data))
+    assert report.arms * report.unit_cm <= 0.5 + 1e-9  # 5 mm (the report's figures are in file units)
     monkeypatch.setattr(search_module, "_flat", lambda *_: False)  # the shortcut off: the secant's steps alone
     bounds.clear()
     mocapz.compress(m, "pga", max_arms="5mm")
