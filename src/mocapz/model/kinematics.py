@@ -173,13 +173,18 @@ TABLES_KEPT = 16  # skeletons whose tables are kept (a rate search asks for one 
 _TABLES: dict[tuple[Any, ...], tuple[Any, ...]] = {}
 
 
+def content_key(skeleton: Skeleton) -> tuple[Any, ...]:
+    """What a skeleton's kinematics are made of, as a key (a skeleton changed in place is another key)."""
+    return (skeleton.angle_unit, np.asarray(skeleton.parents).tobytes(), np.asarray(skeleton.offsets).tobytes(),
+            np.asarray(skeleton.axis).tobytes(), tuple(map(tuple, skeleton.channels)), tuple(skeleton.rotation_order),
+            tuple((int(j), np.asarray(o).tobytes()) for j, o, _ in skeleton.end_sites))
+
+
 def _tables(skeleton: Skeleton) -> tuple[Any, ...]:
     """:func:`.fkkernels.forward`'s arguments after the channels, from ``scale`` to ``end_off``: made once per
     skeleton, kept by what they are made of (a skeleton changed in place is another key; never written to)."""
     assert skeleton.axis is not None
-    key = (skeleton.angle_unit, np.asarray(skeleton.parents).tobytes(), np.asarray(skeleton.offsets).tobytes(),
-           np.asarray(skeleton.axis).tobytes(), tuple(map(tuple, skeleton.channels)), tuple(skeleton.rotation_order),
-           tuple((int(j), np.asarray(o).tobytes()) for j, o, _ in skeleton.end_sites))
+    key = content_key(skeleton)
     made = _TABLES.pop(key, None)
     if made is None:
         made = _make_tables(skeleton)

@@ -88,21 +88,13 @@ def unwrap_columns(out: np.ndarray, cols: np.ndarray, period: float) -> None:
 Unwrapper = Callable[[np.ndarray, np.ndarray, float], None]
 
 
-def channels_from_pose(skeleton: Skeleton, local_rot: np.ndarray, root_pos: np.ndarray,
-                       other: np.ndarray, unwrap: Unwrapper | None = None) -> np.ndarray:
-    """Channel values ``(F, C)`` of local rotations ``(F, J, 3, 3)``, the root position ``(F, 3)`` and the
-    non-root position channels ``(F, p)`` (file units). Angles are unwrapped along time (a full turn is
-    360 degrees or 2 pi radians, by the skeleton's angle unit) by ``unwrap(out, rotation columns, period)``
-    (:func:`unwrap_columns` by default, or the file's stored turns, :mod:`.turns`). Always finite (NaN and inf
-    replaced)."""
-    out = np.zeros((local_rot.shape[0], skeleton.n_channels))
-    channels_from_rotations(skeleton, local_rot, out)
-    return finish_channels(skeleton, out, root_pos, other, unwrap)
-
-
 def finish_channels(skeleton: Skeleton, out: np.ndarray, root_pos: np.ndarray, other: np.ndarray,
                     unwrap: Unwrapper | None = None) -> np.ndarray:
-    """:func:`channels_from_pose` after the Euler angles are in ``out``: unwrap them, add the positions."""
+    """Channel values ``(F, C)`` from the Euler angles in ``out`` (:func:`channels_from_rotations`), in place:
+    the angles unwrapped along time (a full turn is 360 degrees or 2 pi radians, by the skeleton's angle unit) by
+    ``unwrap(out, rotation columns, period)`` (:func:`unwrap_columns` by default, or the file's stored turns,
+    :mod:`.turns`), the root position ``(F, 3)`` and the non-root position channels ``(F, p)`` (file units) added.
+    Always finite (NaN and inf replaced)."""
     root_cols, other_cols = position_columns(skeleton)
     rot_cols = skeleton.rotation_columns()
     period = 360.0 if skeleton.angle_unit == "deg" else 2 * np.pi

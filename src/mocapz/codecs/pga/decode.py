@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import functools
+import threading
 from collections.abc import Callable, Hashable
 from dataclasses import dataclass, replace
 from itertools import pairwise
@@ -12,7 +13,7 @@ import numpy as np
 
 from mocapz.codecs.correction.window import seekable
 from mocapz.codecs.pga import ikjit, lifting, turns
-from mocapz.codecs.pga.channels import Unwrapper, channels_from_pose, euler_tables, finish_channels
+from mocapz.codecs.pga.channels import Unwrapper, channels_from_rotations, euler_tables, finish_channels
 from mocapz.codecs.pga.clip import targets_in_root_frame
 from mocapz.codecs.pga.effectors import effector_points
 from mocapz.codecs.pga.ik import IKProblem, make_problem
@@ -26,6 +27,7 @@ from mocapz.codecs.pga.quantise import dequantise_model, model_from_matrices
 from mocapz.errors import FormatError, OptionError
 from mocapz.format.entropy import decode_int_matrix
 from mocapz.model.header import ClipHeader
+from mocapz.model.kinematics import content_key
 from mocapz.model.skeleton import Skeleton
 
 
@@ -256,19 +258,37 @@ def _rows_of(d: Decoded, rows: np.ndarray | slice) -> Decoded:
 
 def decode_kept(skeleton: Skeleton, s: PGASettings, sections: dict[str, bytes], n: int,
                 edit: dict[int, np.ndarray] | None = None, unwrap: Unwrapper | None = None,
-                memo: dict[Hashable, Any] | None = None) -> np.ndarray:
+                memo: dict[Hashable, Any] | None = None, leave: bool = False) -> np.ndarray:
     """Channels ``(n, C)`` of the ``n`` kept frames; ``edit`` as in :func:`decode_channels`; ``unwrap``: the
     file's stored turns (:mod:`.turns`) by default, else np.unwrap (edited targets: np.unwrap); ``memo``: a rate
-    search's (:func:`decode_streams`)."""
+    search's (:func:`decode_streams`). ``leave``: this thread's next decode of the same sections (an encoder's
+    of its own file: :func:`with_turns`, then the correction's base) takes their Euler angles as they are, not
+    decoding them again (the same numbers); any decode takes what was left, or drops it."""
+    if not edit and unwrap is None:
+        unwrap = stored_turns(skeleton, sections, n)
+    key = None if edit or memo is not None else _angles_key(skeleton, sections, n)
+    left = _LEFT.__dict__.pop("angles", None)
+    if key is not None and left is not None and left[0] == key:  # what with_turns decoded of these sections
+        return finish_channels(skeleton, *left[1:], unwrap)
     d = decode_streams(skeleton, s, sections, n, memo=memo)
     targets = d.targets
     if edit:
         targets = targets.copy()
         for slot, traj in edit.items():
             targets[:, slot] = targets_in_root_frame(traj[:, None], d.root_pos, d.root_rot)[:, 0]
-    elif unwrap is None:
-        unwrap = stored_turns(skeleton, sections, n)
-    return rebuild(skeleton, d, s, targets, unwrap=unwrap)
+    angles = euler_angles(skeleton, d, s, targets)
+    if leave and key is not None:
+        _LEFT.angles = (key, angles.copy(), d.root_pos, d.other)
+    return finish_channels(skeleton, angles, d.root_pos, d.other, unwrap)
+
+
+_LEFT = threading.local()  # ``angles``: the Euler angles of the sections with_turns decoded last, for the next decode
+
+
+def _angles_key(skeleton: Skeleton, sections: dict[str, bytes], n: int) -> tuple[Any, ...]:
+    """What a clip's Euler angles before unwrapping are a function of: its skeleton, kept frames and sections
+    (but the ``turns`` its unwrapping reads)."""
+    return content_key(skeleton), n, tuple(sorted((k, v) for k, v in sections.items() if k != turns.SECTION))
 
 
 def stored_turns(skeleton: Skeleton, sections: dict[str, bytes], n: int, first: int = 0) -> Unwrapper | None:
@@ -285,7 +305,8 @@ def with_turns(skeleton: Skeleton, sections: dict[str, bytes], frames: int) -> d
         return sections
     s = PGASettings.from_bytes(sections["params"])
     n = frames - len(s.outliers)
-    raw = decode_kept(skeleton, s, sections, n, unwrap=turns.raw) if n else np.zeros((0, skeleton.n_channels))
+    raw = decode_kept(skeleton, s, sections, n, unwrap=turns.raw, leave=True) if n \
+        else np.zeros((0, skeleton.n_channels))
     events = turns.Turns.of(raw, skeleton.rotation_columns(), 360.0 if skeleton.angle_unit == "deg" else 2 * np.pi)
     return {**sections, turns.SECTION: events.to_bytes()}
 
@@ -295,6 +316,13 @@ def rebuild(skeleton: Skeleton, d: Decoded, s: PGASettings, targets: np.ndarray,
     """IK and channel assembly for the kept frames. Always returns finite values. ``frames``: the kept frames
     of the clip ``d`` is taken from (None: ``d``'s), which picks the compiled or the NumPy path
     (:func:`ikjit.kernels`); ``unwrap``: how the angles are unwrapped (:func:`.channels.finish_channels`)."""
+    return finish_channels(skeleton, euler_angles(skeleton, d, s, targets, frames), d.root_pos, d.other, unwrap)
+
+
+def euler_angles(skeleton: Skeleton, d: Decoded, s: PGASettings, targets: np.ndarray,
+                 frames: int | None = None) -> np.ndarray:
+    """:func:`rebuild`'s channels ``(kept frames, C)`` before :func:`.channels.finish_channels`: the Euler
+    angles of the IK's poses (not unwrapped), zero in the position columns."""
     n = d.root_pos.shape[0]
     clip = n if frames is None else frames
     model = d.model
@@ -318,10 +346,12 @@ def rebuild(skeleton: Skeleton, d: Decoded, s: PGASettings, targets: np.ndarray,
                                     180.0 / np.pi if skeleton.angle_unit == "deg" else 1.0, out)
         if bad:
             raise FormatError(None, "corrupted PGA stream (poses out of range)")
-        return finish_channels(skeleton, out, d.root_pos, d.other, unwrap)
+        return out
     local = np.broadcast_to(np.eye(3), (n, skeleton.n_joints, 3, 3)).copy()
     local[:, 0] = d.root_rot
     local[:, model.joints] = pose(model, x, clip)
     if not np.isfinite(local).all():  # only damaged streams (huge steps, loadings or coordinates) get here
         raise FormatError(None, "corrupted PGA stream (poses out of range)")
-    return channels_from_pose(skeleton, local, d.root_pos, d.other, unwrap)
+    out = np.zeros((n, skeleton.n_channels))
+    channels_from_rotations(skeleton, local, out)
+    return out
