@@ -3,9 +3,8 @@
 
 constriction's ``RangeDecoder`` (64-bit state, 32-bit words) with ``QuantizedLaplace(-LIMIT, LIMIT)`` models at
 24-bit precision, reimplemented with the same integer arithmetic and the same CDF expression: the same symbols in
-one pass. Where a scale block has 64 rows or more to decode, the cumulatives of the symbols -15..15 under each
-column's scale are computed once (the same integers) and looked up: 26-40 ns a value at Laplace scales 0.3-3, 64 at
-30, against constriction's 114-144 (tests/test_range_kernels.py).
+one pass. The cumulatives of the symbols -15..16 under each column's scale in a scale block are kept as they are
+made (the same integers) and looked up: a mostly-zero column makes two, a busy one a few more.
 """
 
 from __future__ import annotations
@@ -134,43 +133,8 @@ def begin(words: np.ndarray) -> np.ndarray:
     return np.array([point, np.uint64(0), _FULL, np.uint64(read)], dtype=np.uint64)
 
 
-TABLE = 15  # symbols -TABLE .. TABLE: looked up in a per-block table of their cumulatives (the rest: computed)
-TABLE_ROWS = 16  # rows of a scale block decoded in one call from which its tables are made
-
-
-@njit(cache=True)
-def _tables(scale: np.ndarray, blk: int, limit: int, lefts: np.ndarray) -> None:
-    """``lefts[c, i]``: the left cumulative of symbol ``i - TABLE`` (``i`` up to ``2 TABLE + 1``) under column
-    ``c``'s scale in block ``blk``: the very integers :func:`_left` gives."""
-    for c in range(lefts.shape[0]):
-        b = scale[blk, c]
-        for i in range(lefts.shape[1]):
-            lefts[c, i] = _left(i - TABLE, b, limit)
-
-
-@njit(cache=True)
-def _table_step(words: np.ndarray, point: np.uint64, lower: np.uint64, rng: np.uint64, read: int, b: float,
-                limit: int, row: np.ndarray) -> tuple[int, np.uint64, np.uint64, np.uint64, int, bool]:
-    """:func:`step` with the cumulatives of the symbols near zero looked up in ``row`` (:func:`_tables`)."""
-    width = rng >> np.uint64(PRECISION)
-    q = (point - lower) // width
-    if q >= np.uint64(1 << PRECISION):
-        return 0, point, lower, rng, read, False
-    qi = np.int64(q)
-    top = row.size - 1
-    if row[0] <= qi < row[top]:
-        lo, hi = 0, top  # row[lo] <= q < row[hi]
-        while hi - lo > 1:
-            mid = (lo + hi) >> 1
-            if row[mid] <= qi:
-                lo = mid
-            else:
-                hi = mid
-        s, left, right = lo - TABLE, row[lo], row[lo + 1]
-    else:
-        s, left, right = _find_symbol(qi, b, limit)
-    point, lower, rng, read = _advance(words, point, lower, rng, read, width, left, right)
-    return s, point, lower, rng, read, True
+TABLE = 15  # symbols -TABLE .. TABLE + 1: their cumulatives kept per column and scale block (the rest: computed)
+TOP = 2 * TABLE + 1  # the last kept cumulative's index (symbol TABLE + 1)
 
 
 @njit(cache=True, nogil=True)
@@ -181,21 +145,67 @@ def decode_laplace(words: np.ndarray, state: np.ndarray, scale: np.ndarray, row0
     decoder's ``state`` (:func:`begin`); returns :data:`OK` or :data:`BAD_DATA`."""
     rows, cols = out.shape
     point, lower, rng, read = state[0], state[1], state[2], np.int64(state[3])
-    lefts = np.zeros((cols, 2 * TABLE + 2), dtype=np.int64)
-    tabled = -1  # the block whose tables ``lefts`` holds
+    # lefts[c, i]: the left cumulative of symbol i - TABLE under column c's scale in the block: _left's integer, made
+    # the first time a symbol's search asks for it (-1: not made yet; a column of zeros makes two). Written out here,
+    # not in a helper taking the array (a call per symbol passing an array costs more than the search)
+    lefts = np.full((cols, TOP + 1), -1, dtype=np.int64)
+    nwords = words.size
+    tabled = (row0 // block) if rows else -1  # the block whose cumulatives ``lefts`` holds
     for t in range(rows):
         blk = (row0 + t) // block
-        if blk != tabled and min((blk + 1) * block - row0, rows) - t >= TABLE_ROWS:
-            _tables(scale, blk, limit, lefts)
+        if blk != tabled:
+            lefts[:, :] = -1
             tabled = blk
         for c in range(cols):
-            if blk == tabled:
-                s, point, lower, rng, read, ok = _table_step(words, point, lower, rng, read, scale[blk, c], limit,
-                                                             lefts[c])
-            else:
-                s, point, lower, rng, read, ok = step(words, point, lower, rng, read, scale[blk, c], limit)
-            if not ok:
+            b = scale[blk, c]
+            width = rng >> np.uint64(PRECISION)
+            q = (point - lower) // width
+            if q >= np.uint64(1 << PRECISION):
                 return BAD_DATA
+            qi = np.int64(q)
+            zero = lefts[c, TABLE]
+            if zero < 0:
+                zero = lefts[c, TABLE] = _left(0, b, limit)
+            one = lefts[c, TABLE + 1]
+            if one < 0:
+                one = lefts[c, TABLE + 1] = _left(1, b, limit)
+            lo, hi = -1, -1  # the bisection's bounds, left(lo) <= q < left(hi), or none: outside the kept symbols
+            if qi < zero:
+                e = lefts[c, 0]
+                if e < 0:
+                    e = lefts[c, 0] = _left(-TABLE, b, limit)
+                if e <= qi:
+                    lo, hi = 0, TABLE
+            elif qi >= one:
+                e = lefts[c, TOP]
+                if e < 0:
+                    e = lefts[c, TOP] = _left(TOP - TABLE, b, limit)
+                if qi < e:
+                    lo, hi = TABLE + 1, TOP
+            else:
+                lo, hi = TABLE, TABLE + 1
+            if lo >= 0:
+                while hi - lo > 1:
+                    mid = (lo + hi) >> 1
+                    e = lefts[c, mid]
+                    if e < 0:
+                        e = lefts[c, mid] = _left(mid - TABLE, b, limit)
+                    if e <= qi:
+                        lo = mid
+                    else:
+                        hi = mid
+                s, left, right = lo - TABLE, lefts[c, lo], lefts[c, hi]
+            else:
+                s, left, right = _find_symbol(qi, b, limit)
+            lower = lower + width * np.uint64(left)  # _advance, written out (see above)
+            rng = width * np.uint64(right - left)
+            if rng < _RENORM:
+                lower = lower << _U32
+                rng = rng << _U32
+                point = point << _U32
+                if read < nwords:
+                    point = point | np.uint64(words[read])
+                read += 1
             out[t, c] = s
     state[0], state[1], state[2], state[3] = point, lower, rng, np.uint64(read)
     return OK
