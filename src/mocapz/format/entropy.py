@@ -18,6 +18,7 @@ import numpy as np
 
 from mocapz import _jit, aot
 from mocapz.errors import FormatError
+from mocapz.format import rangewriter
 from mocapz.format.entropy_costs import (  # noqa: F401  (re-exported: the scale search's costs)
     HIST_VALUES,
     _candidate_bits,
@@ -43,6 +44,7 @@ from mocapz.format.planes import (  # noqa: F401  (re-exported: the integer stre
     zigzag,
     zstd_capacity,
 )
+from mocapz.format.rangewriter import RangeWriter
 
 try:  # pragma: no cover - exercised on platforms without wheels
     import constriction
@@ -96,24 +98,20 @@ def _block_scale(q: np.ndarray, steps: int = SCALE_STEPS, bias: int = 64) -> np.
     return 2.0 ** ((q.astype(np.float64) - bias) / steps)
 
 
-def _encode_values(enc: Any, v: np.ndarray, scale: np.ndarray, row0: int = 0) -> bytes:
+def _encode_values(enc: RangeWriter, v: np.ndarray, scale: np.ndarray, row0: int = 0) -> bytes:
     """Range code the values of ``v`` ``(rows, columns)`` (row by row, clipped to the model's range; the escape
     mark where beyond) into ``enc`` under the Laplace scales ``scale`` ``(blocks, columns)`` of their blocks of
-    :data:`BLOCK` rows (``v``'s first row being row ``row0`` of the matrix the blocks count), :data:`CHUNK_VALUES`
-    values per call (the coder takes one array per value and parameter: made a chunk at a time they stay small;
-    the stream is the one of a single call). Returns the packed escaped values (b"" without any)."""
-    rows, cols = v.shape
-    model = constriction.stream.model.QuantizedLaplace(-LIMIT, LIMIT)
-    step = max(1, CHUNK_VALUES // max(cols, 1))
-    escapes = []
-    for a in range(0, rows, step):
-        part = v[a:a + step]
-        sym = np.clip(part, -LIMIT, LIMIT).astype(np.int32).ravel()
-        blocks = np.arange(row0 + a, row0 + a + len(part)) // BLOCK
-        enc.encode(sym, model, np.zeros(sym.size), scale[blocks].ravel())
-        escapes.append(part[np.abs(part) >= LIMIT])
-    esc = np.concatenate(escapes)
+    :data:`BLOCK` rows (``v``'s first row being row ``row0`` of the matrix the blocks count). Returns the packed
+    escaped values (b"" without any)."""
+    enc.laplace(v, scale, row0, BLOCK, LIMIT)
+    esc = v[np.abs(v) >= LIMIT]
     return pack_uint64(zigzag(esc)) if esc.size else b""
+
+
+def range_writer(values: int = 0) -> RangeWriter:
+    """A writer of a range-coded stream of about ``values`` values: the compiled one where the decoder's kernels
+    would be used (:func:`range_decoder`), else constriction's; both write the same words."""
+    return rangewriter.writer(_range_kernels(values))
 
 
 # ---------------------------------------------------------------- public API
@@ -144,9 +142,9 @@ def encode_int_matrix(values: np.ndarray, coder: int | None = None) -> bytes:
     if coder == CODER_RANGE_DELTA:
         return _encode_delta(v, head)
     q = _block_scales(v)
-    enc = constriction.stream.queue.RangeEncoder()
+    enc = range_writer(v.size)
     esc = _encode_values(enc, v, _block_scale(q))
-    body = enc.get_compressed().tobytes()
+    body = enc.body()
     scales = pack_uint64(q.ravel())
     kind, scales = (CODER_RANGE_PACKED, write_uvarint(len(scales)) + scales) if len(scales) + 2 < q.size \
         else (CODER_RANGE, q.tobytes())
@@ -157,10 +155,10 @@ def _encode_delta(v: np.ndarray, head: bytes) -> bytes:
     """The CODER_RANGE_DELTA stream of ``v`` ``(rows, columns)``: the scale codes' differences (in block, then
     column order, from QUARTER_BIAS) and the values, in one range-coded body."""
     q, pick = _delta_scales(v)
-    enc = constriction.stream.queue.RangeEncoder()
+    enc = range_writer(v.size)
     _encode_scale_codes(enc, q, pick)
     esc = _encode_values(enc, v, _block_scale(q, 4, QUARTER_BIAS))
-    body = enc.get_compressed().tobytes()
+    body = enc.body()
     return bytes([CODER_RANGE_DELTA]) + head + bytes([pick]) + write_uvarint(len(esc)) + esc \
         + write_uvarint(len(body)) + body
 
@@ -173,10 +171,16 @@ def _delta_scales(v: np.ndarray) -> tuple[np.ndarray, int]:
     return q, int(np.argmin([_laplace_bits(diffs, None, np.array([d]))[0] for d in DELTA_SCALES]))
 
 
-def _encode_scale_codes(enc: Any, q: np.ndarray, pick: int) -> None:
+def _encode_scale_codes(enc: RangeWriter, q: np.ndarray, pick: int) -> None:
     """Range code the scale codes ``q`` as differences (block, then column order, from QUARTER_BIAS)."""
-    diffs = np.diff(q.ravel(), prepend=QUARTER_BIAS)
-    enc.encode(diffs.astype(np.int32), _DELTA_MODEL, np.zeros(diffs.size), np.full(diffs.size, DELTA_SCALES[pick]))
+    encode_differences(enc, np.diff(q.ravel(), prepend=QUARTER_BIAS), pick)
+
+
+def encode_differences(enc: RangeWriter, d: np.ndarray, pick: int) -> None:
+    """Range code scale codes' differences ``d`` ``(n,)`` under the Laplace scale ``DELTA_SCALES[pick]`` on
+    ``[-DELTA_LIMIT, DELTA_LIMIT]`` (constriction's ``_DELTA_MODEL``)."""
+    enc.laplace(np.asarray(d, dtype=np.int64).reshape(-1, 1), np.full((1, 1), DELTA_SCALES[pick]), 0,
+                max(d.size, 1), DELTA_LIMIT)
 
 
 def _decode_scale_codes(dec: RangeReader, pick: int, nb: int, cols: int) -> np.ndarray:

@@ -38,6 +38,7 @@ import numpy as np
 from mocapz.errors import FormatError
 from mocapz.format import entropy as E
 from mocapz.format.entropy_shared import HALF_BIAS, HALF_TOP, _codes, _scales, dense
+from mocapz.format.rangewriter import RangeWriter
 
 PER_COLUMN = 0x10  # flag in the first byte: every column a group of its own (the given groups not used)
 ZEROS = 0x40  # flag in the first byte: the groups all zero in a part are masked, without codes or values
@@ -118,12 +119,12 @@ def _encode(parts: list[np.ndarray], groups: np.ndarray, flag: int,
                      codes[-1][-1:].copy() if codes else np.full((1, n), HALF_BIAS, dtype=np.int64))
     d = _predicted(codes)
     pick = _pick(d)
-    enc = E.constriction.stream.queue.RangeEncoder()
-    enc.encode(d.astype(np.int32), E._DELTA_MODEL, np.zeros(d.size), np.full(d.size, E.DELTA_SCALES[pick]))
+    enc = E.range_writer(sum(p.size for p in parts))
+    E.encode_differences(enc, d, pick)
     for p, c in zip(parts, codes, strict=True):
         if p.size:
             E._encode_values(enc, p, _scales(c, gid))
-    body = enc.get_compressed().tobytes()
+    body = enc.body()
     esc_bytes = _escapes(parts)
     return bytes([pick | flag]) + E.write_uvarint(len(esc_bytes)) + esc_bytes + E.write_uvarint(len(body)) + body
 
@@ -228,17 +229,17 @@ def _encode_masked(parts: list[np.ndarray], groups: np.ndarray, flag: int,
         last[on] = c[-1, on]
     d = np.concatenate(diffs) if diffs else np.zeros(0, np.int64)
     pick = _pick(d) if d.size else 0
-    enc = E.constriction.stream.queue.RangeEncoder()
+    enc = RangeWriter()  # constriction's: the masks' model is not a Laplace
     for z, k in zip(zeros, ctx, strict=True):
         sym = (z != likely[k]).astype(np.int32)
         enc.encode(sym, _MASK_MODEL, np.zeros(sym.size), scales[k].astype(np.float64))
     if d.size:
-        enc.encode(d.astype(np.int32), E._DELTA_MODEL, np.zeros(d.size), np.full(d.size, E.DELTA_SCALES[pick]))
+        E.encode_differences(enc, d, pick)
     for p, c, z in zip(full, codes, zeros, strict=True):
         on = ~z[gid]
         if on.any():
             E._encode_values(enc, p[:, on], _scales(c, gid)[:, on])
-    body = enc.get_compressed().tobytes()
+    body = enc.body()
     esc_bytes = _escapes(parts)
     return bytes([pick | flag, nibbles[0] | nibbles[1] << 4, nibbles[2]]) + E.write_uvarint(len(esc_bytes)) \
         + esc_bytes + E.write_uvarint(len(body)) + body

@@ -64,10 +64,10 @@ def encode(v: np.ndarray, groups: np.ndarray) -> bytes:
     q = _codes(v, gid, n)
     diffs = np.abs(np.diff(q.ravel(), prepend=HALF_BIAS))[:, None].astype(np.float64)
     pick = int(np.argmin([E._laplace_bits(diffs, None, np.array([d]))[0] for d in E.DELTA_SCALES]))
-    enc = E.constriction.stream.queue.RangeEncoder()
+    enc = E.range_writer(v.size)
     E._encode_scale_codes(enc, q - (HALF_BIAS - E.QUARTER_BIAS), pick)  # differences from HALF_BIAS
     esc = E._encode_values(enc, v, _scales(q, gid))
-    body = enc.get_compressed().tobytes()
+    body = enc.body()
     return bytes([CODER_RANGE_SHARED]) + E.write_uvarint(rows) + E.write_uvarint(cols) + bytes([pick]) \
         + E.write_uvarint(len(esc)) + esc + E.write_uvarint(len(body)) + body
 

@@ -209,3 +209,77 @@ def decode_laplace(words: np.ndarray, state: np.ndarray, scale: np.ndarray, row0
             out[t, c] = s
     state[0], state[1], state[2], state[3] = point, lower, rng, np.uint64(read)
     return OK
+
+
+# ---------------------------------------------------------------- encoder
+_WORD = np.uint64(0xFFFFFFFF)
+
+
+@njit(cache=True, nogil=True)
+def encode_laplace(values: np.ndarray, scale: np.ndarray, row0: int, block: int, limit: int, state: np.ndarray,
+                   out: np.ndarray) -> int:
+    """constriction's ``RangeEncoder.encode`` of ``values`` ``(rows, cols)`` int64, row by row, each clipped to
+    ``[-limit, limit]`` and coded under the quantized Laplace scale ``scale[(row0 + row) // block, col]``, from and to
+    the encoder's ``state`` ``[lower, range, words held back, the first of them]`` uint64 (``[0, 2**64 - 1, 0, 0]``
+    at the start): its words into ``out`` (room for ``rows * cols`` plus the words held back, plus 1), the count
+    returned. A carry can still reach words held back (an inverted situation: the interval straddles a word
+    boundary): they are written once it is resolved, here or by :func:`seal`."""
+    rows, cols = values.shape
+    lower, rng, held, first = state[0], state[1], np.int64(state[2]), state[3]
+    n = 0
+    for t in range(rows):
+        blk = (row0 + t) // block
+        for c in range(cols):
+            s = min(max(values[t, c], -limit), limit)
+            b = scale[blk, c]
+            left = _left(s, b, limit)
+            width = rng >> np.uint64(PRECISION)
+            rng = width * np.uint64(_left(s + 1, b, limit) - left)
+            new_lower = lower + width * np.uint64(left)  # wrapping
+            if held and new_lower + rng > new_lower:  # back to a normal situation: the held words written
+                n = _release(out, n, held, first, new_lower < lower)
+                held = 0
+            lower = new_lower
+            if rng < _RENORM:
+                rng = rng << _U32
+                word = lower >> _U32
+                lower = lower << _U32
+                if held:
+                    held += 1
+                elif lower + rng > lower:
+                    out[n] = np.uint32(word)
+                    n += 1
+                else:  # an inverted situation: the word waits for the carry
+                    held, first = 1, word
+    state[0], state[1], state[2], state[3] = lower, rng, np.uint64(held), first
+    return n
+
+
+@njit(cache=True)
+def _release(out: np.ndarray, n: int, held: int, first: np.uint64, carry: bool) -> int:
+    """Write ``held`` words held back in an inverted situation: the first (plus the carry) and the others (all
+    ones, or all zeros after a carry)."""
+    out[n] = np.uint32((first + np.uint64(1)) & _WORD) if carry else np.uint32(first)
+    fill = np.uint32(0) if carry else np.uint32(0xFFFFFFFF)
+    for i in range(1, held):
+        out[n + i] = fill
+    return n + held
+
+
+@njit(cache=True)
+def seal(state: np.ndarray, out: np.ndarray) -> int:
+    """The words that end a stream in ``state`` (constriction's ``seal``: the words held back, then a point of the
+    interval, then a zero word where the interval's upper end shares the point's word) into ``out`` (room for the
+    words held back plus 2); their count (0 for a stream without a symbol)."""
+    lower, rng, held, first = state[0], state[1], np.int64(state[2]), state[3]
+    if rng == _FULL:
+        return 0
+    point = lower + (_RENORM - np.uint64(1))  # wrapping
+    n = _release(out, 0, held, first, point < lower) if held else 0
+    word = point >> _U32
+    out[n] = np.uint32(word)
+    n += 1
+    if ((lower + rng) >> _U32) == word:
+        out[n] = np.uint32(0)
+        n += 1
+    return n

@@ -50,17 +50,16 @@ def encode_segments(values: np.ndarray, starts: Sequence[int]) -> bytes:
 
 
 def _encode_range(v: np.ndarray, starts: Sequence[int]) -> bytes:
-    constriction = entropy.constriction
     q, pick = entropy._delta_scales(v)
-    enc = constriction.stream.queue.RangeEncoder()
+    enc = entropy.range_writer(v.size)
     entropy._encode_scale_codes(enc, q, pick)
-    head = enc.get_compressed().tobytes()
+    head = enc.body()
     out = bytearray([SEG_RANGE, pick]) + write_uvarint(len(head)) + head
     scale = entropy._block_scale(q, 4, entropy.QUARTER_BIAS)
     for a, b in zip(starts, [*starts[1:], v.shape[0]], strict=True):
-        enc = constriction.stream.queue.RangeEncoder()
+        enc = entropy.range_writer(v.size)
         esc = entropy._encode_values(enc, v[a:b], scale, a)
-        body = enc.get_compressed().tobytes()
+        body = enc.body()
         out += write_uvarint(len(esc)) + esc + write_uvarint(len(body)) + body
     return bytes(out)
 
