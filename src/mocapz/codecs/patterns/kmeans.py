@@ -33,12 +33,13 @@ class Clustering:
     errors: np.ndarray
 
 
-def masked_means(x: np.ndarray, o: np.ndarray, labels: np.ndarray, k: int) -> np.ndarray:
-    """Per-cluster weighted means ``(k, D)``; dimensions never observed take the plain mean."""
+def masked_means(x: np.ndarray, o: np.ndarray, labels: np.ndarray, k: int, ox: np.ndarray | None = None) -> np.ndarray:
+    """Per-cluster weighted means ``(k, D)``; dimensions never observed take the plain mean. ``ox``: ``o * x``,
+    when the caller has it (the same numbers)."""
     if k * len(labels) <= 4_000_000:
         onehot = np.zeros((k, len(labels)))
         onehot[labels, np.arange(len(labels))] = 1.0
-        num, den = onehot @ (o * x), onehot @ o
+        num, den = onehot @ (o * x if ox is None else ox), onehot @ o
         if (den > 1e-12).all():  # every dimension observed in every cluster: the weighted means alone
             return num / den
         plain, cnt = onehot @ x, onehot.sum(axis=1)[:, None]
@@ -77,8 +78,8 @@ def _weighted(x: np.ndarray, o: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 def _bisect(x: np.ndarray, o: np.ndarray, iters: int = 8) -> np.ndarray:
     """Split rows into two groups by 2-means (masked); returns a boolean side per row."""
-    mean = masked_means(x, o, np.zeros(len(x), dtype=np.int64), 1)
     weighted = _weighted(x, o)
+    mean = masked_means(x, o, np.zeros(len(x), dtype=np.int64), 1, weighted[0])
     a = int(np.argmax(_sq_dist(x, o, mean, weighted)[:, 0]))
     b = int(np.argmax(_sq_dist(x, o, x[a : a + 1], weighted)[:, 0]))
     centers = np.stack([x[a], x[b]])
@@ -92,7 +93,7 @@ def _bisect(x: np.ndarray, o: np.ndarray, iters: int = 8) -> np.ndarray:
         if np.array_equal(new, side):
             break
         side = new
-        centers = masked_means(x, o, side.astype(np.int64), 2)
+        centers = masked_means(x, o, side.astype(np.int64), 2, weighted[0])
     return side
 
 
@@ -144,10 +145,11 @@ def _initial(x: np.ndarray, k: int, seed: int) -> np.ndarray:
 def _grow(x, o, centers, labels, err, tol, metric, per_member):
     """Split offending clusters until the bound holds (MaxError) or the mean error does (AveError)."""
     centers = list(centers)
-    members = [list(np.flatnonzero(labels == c)) for c in range(len(centers))]
+    members = [np.flatnonzero(labels == c) for c in range(len(centers))]  # each cluster's rows, increasing
     work = list(range(len(centers)))
-    sse = [float((err[m] ** 2).sum()) for m in members]
-    total = float((err**2).sum())
+    ave = metric != MAX  # the clusters' squared errors and their total: AveError's only
+    sse = [float((err[m] ** 2).sum()) for m in members] if ave else []
+    total = float((err**2).sum()) if ave else 0.0
     while True:
         if metric == MAX:
             if not work:
@@ -161,7 +163,7 @@ def _grow(x, o, centers, labels, err, tol, metric, per_member):
             c = int(np.argmax(sse))
             if len(members[c]) < 2:
                 break
-        idx = np.asarray(members[c])
+        idx = members[c]
         side = _bisect(x[idx], o[idx])
         new = len(centers)
         for target, rows in ((c, idx[~side]), (new, idx[side])):
@@ -170,13 +172,14 @@ def _grow(x, o, centers, labels, err, tol, metric, per_member):
             labels[rows] = target
             if target == new:
                 centers.append(mu)
-                members.append(list(rows))
-                sse.append(0.0)
+                members.append(rows)
             else:
                 centers[c] = mu
-                members[c] = list(rows)
-            sse[target] = float((err[rows] ** 2).sum())
-        total = float(sum(sse))
+                members[c] = rows
+            if ave:
+                sse[target:target + 1] = [float((err[rows] ** 2).sum())]  # the new cluster's appended
+        if ave:
+            total = float(sum(sse))
         work.extend([c, new])
     return np.asarray(centers), labels, err
 
