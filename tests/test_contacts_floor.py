@@ -80,3 +80,19 @@ def test_a_stream_window_finds_the_whole_clips_contacts() -> None:
         win = find_contacts(m.slice(w0, e), a[w0:e], valid[w0:e], m.skeleton.unit_cm)
         assert np.array_equal(win.feet, whole.feet) and win.up == whole.up
         assert np.array_equal(win.steps[s - w0:e - w0 - 1], whole.steps[s:e - 1]), s
+
+
+def test_body_height_without_gaps_is_the_gap_path_figure() -> None:
+    """context.body_height takes its extents point by point where nothing is missing: the figure the NaN-aware
+    reductions give, to the bit, and with gaps those reductions still skip them."""
+    from mocapz.codecs.correction.context import body_height
+
+    m, a, valid = _clip("06_13", 1500)
+    big = np.where(valid[..., None], a, np.nan)
+    ref = float(np.nanmedian(np.nanmax(np.nanmax(big, axis=1) - np.nanmin(big, axis=1), axis=1)))
+    assert body_height(a, valid) == ref
+    gaps = valid.copy()
+    gaps[:, 3] = False  # one point missing everywhere: not part of any extent
+    far = a.copy()
+    far[:, 3] += 1e6
+    assert body_height(far, gaps) == body_height(np.delete(a, 3, axis=1), np.delete(valid, 3, axis=1))
