@@ -17,7 +17,7 @@ import zstandard
 from mocapz.errors import FormatError
 from mocapz.format.entropy import read_uvarint, unzigzag, write_uvarint, zigzag
 from mocapz.format.layout_check import check_layout, check_offset_names
-from mocapz.format.planes import read_uvarints
+from mocapz.format.planes import decompressor, read_uvarints
 from mocapz.io.common import detect_decimals
 from mocapz.model.header import KEPT_METADATA, ClipHeader
 from mocapz.model.motion import AnyMotion, Motion
@@ -229,7 +229,7 @@ def _unpack(data: bytes) -> dict[str, Any]:
         size = zstandard.get_frame_parameters(z).content_size
         if size == zstandard.CONTENTSIZE_UNKNOWN or size > 1 << 26:
             raise FormatError(None, "corrupted layout header (implausible size)")
-        d = json.loads(zstandard.ZstdDecompressor(dict_data=_DICT).decompress(z, max_output_size=1 << 26))
+        d = json.loads(decompressor(_DICT).decompress(z, max_output_size=1 << 26))
     except (zstandard.ZstdError, ValueError, UnicodeDecodeError) as exc:
         raise FormatError(None, f"corrupted layout header ({exc})") from None
     if not isinstance(d, dict):

@@ -372,8 +372,8 @@ def shrink_code(shrink: float) -> int:
 def group_of(header: ClipHeader) -> np.ndarray:
     """``(columns,)`` the group (joint, marker) of every value column."""
     if header.skeleton is not None:
-        return np.concatenate([np.full(len(c), j) for j, c in enumerate(header.skeleton.channels)]
-                              + [np.zeros(0)]).astype(np.int64)
+        return np.repeat(np.arange(header.skeleton.n_joints, dtype=np.int64),
+                         [len(c) for c in header.skeleton.channels])
     return np.repeat(np.arange(len(header.labels)), 3)
 
 
