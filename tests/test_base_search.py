@@ -117,8 +117,8 @@ def test_a_model_is_given_up_once_its_bytes_reach_the_correction_alones(name: st
                                                                         monkeypatch: pytest.MonkeyPatch) -> None:
     """The patterns model is encoded only as far as it may give the smaller file: where its own sections reach
     what the correction alone codes the clip in, its encoding stops (02_05's model is 2.4 times the correction
-    alone's file: part way through its body parts; 06_13's first 3,000 frames 1.1 times and 09_06's: after two of
-    their five, whose bytes the other three, each as large as the smaller of those two, would take past it); the
+    alone's file; 06_13's first 3,000 frames 1.1 times, and 09_06's: each after the first of its five body parts,
+    whose bytes the other four, each as large, would take past it); the
     file is byte for byte the one of a model encoded whole (the budget off), whichever base wins. A marker clip
     with gaps (01_01.c3d: its zero base has bytes of
     its own, the gap mask) at effort fast likewise: the depth is given, so the order the bases are tried in
@@ -146,6 +146,7 @@ def test_a_model_is_given_up_once_its_bytes_reach_the_correction_alones(name: st
     model_won = len(whole) <= len(mocapz.compress(m, "quant"))
     assert bool(spent) != model_won  # given up exactly where the correction alone is the smaller
     assert (parts < len(calls)) == early
+    assert parts == (1 if early else len(calls))  # the first node's bytes are the estimate (bodies.MEASURED)
 
 
 def test_a_budget_gives_up_where_the_parts_left_would_reach_its_cap() -> None:
