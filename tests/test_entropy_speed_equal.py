@@ -81,3 +81,45 @@ def test_blocks_costed_together_pick_each_blocks_codes(search_bits: int, monkeyp
             alone = [entropy_costs._block_codes(v[b:b + entropy.BLOCK], v.shape[1], steps, bias, off, top)
                      for b in range(0, max(len(v), 1), entropy.BLOCK)]
             assert np.array_equal(got, np.array(alone).reshape(got.shape)), (v.shape, steps)
+
+
+def test_compiled_scale_search_picks_numpys_codes(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The compiled scale search of whole blocks (:func:`mocapz.format.rangekernels.histogram_codes`) picks the codes
+    of NumPy's histogram costs: on synthetic matrices (dense, sparse, half zeros, values past the table) and on every
+    matrix the encoders search while coding real clips (quant, patterns and pga; skeleton and markers), at both
+    scale precisions; and the files are the same bytes either way."""
+    pytest.importorskip("numba")
+    from mocapz.format import rangekernels
+
+    rng = np.random.default_rng(3)
+    mats = _matrices()
+    for i in range(120):
+        rows, cols = int(rng.integers(1, 2000)), int(rng.integers(1, 60))
+        spread = float(rng.choice([0.1, 1.0, 8.0, 40.0, 300.0]))
+        v = np.round(rng.laplace(0, spread, (rows, cols))).astype(np.int64)
+        mats.append(np.where(rng.random((rows, cols)) < (0.9 if i % 3 == 0 else 0.0), 0, v))
+    seen: list[np.ndarray] = []
+    real = entropy_costs.scale_codes
+
+    def keep(values, *args, **kw):  # noqa: ANN001, ANN002, ANN003, ANN202
+        seen.append(np.array(values))
+        return real(values, *args, **kw)
+
+    monkeypatch.setattr(entropy_costs, "scale_codes", keep)
+    monkeypatch.setattr(entropy, "scale_codes", keep)
+    clips = [(data_path("cmu/bvh/02_05.bvh"), 1200), (data_path("cmu/c3d/01_01.c3d"), 600)]
+    for path, frames in clips:
+        m = mocapz.load(path)
+        m = m.slice(0, frames)
+        for codec in ("quant", "patterns", "pga") if hasattr(m, "skeleton") else ("quant", "patterns"):
+            with_kernel = mocapz.compress(m, codec)
+            with monkeypatch.context() as mp:
+                mp.setattr(entropy, "_range_kernels", lambda values: None)
+                assert mocapz.compress(m, codec) == with_kernel, (path, codec)
+    assert len(seen) > 20
+    for v in mats + seen:
+        for steps, bias, offsets, top in ((4, entropy.QUARTER_BIAS, range(-4, 13), entropy.QUARTER_TOP),
+                                          (entropy.SCALE_STEPS, 64, range(-8, 25, 2), 255)):
+            numpy_codes = real(v, entropy.BLOCK, steps, bias, offsets, top)
+            compiled = real(v, entropy.BLOCK, steps, bias, offsets, top, kernels=rangekernels)
+            assert np.array_equal(numpy_codes, compiled), (v.shape, steps)

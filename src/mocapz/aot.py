@@ -85,6 +85,8 @@ SIGNATURES: tuple[tuple[str, str, str], ...] = (
     ("range", "decode_laplace", "i8(u4[::1], u8[::1], f8[:, ::1], i8, i8, i8, i8[:, ::1])"),
     ("range", "encode_laplace", "i8(i8[:, ::1], f8[:, ::1], i8, i8, i8, u8[::1], u4[::1])"),
     ("range", "seal", "i8(u8[::1], u4[::1])"),
+    ("range", "histogram_codes", "none(i8[:, ::1], i8, f8[:, :, ::1], f8[:, ::1], b1[::1], i8[:, ::1])"),
+    ("range", "block_codes", "none(i8[:, ::1], f8[:, ::1], f8[:, ::1], i8[::1], i8[::1], f8[:, ::1], i8[::1])"),
     ("lossless", "decode_residual_rows", "i8(u4[::1], b1[:, ::1], i8[::1], i8[::1], u1[::1], i8[:, ::1])"),
     ("lossless", "row_models", "none(i8[:, ::1], b1[:, ::1], i8[::1], i8[:, ::1], f8[:, ::1])"),
     ("lossless", "undo_prediction",

@@ -90,7 +90,7 @@ def _quarter_scales(values: np.ndarray) -> np.ndarray:
 
 def _scale_codes(values: np.ndarray, steps: int, bias: int, offsets: range, top: int) -> np.ndarray:
     """:func:`~.entropy_costs.scale_codes` per block of :data:`BLOCK` rows."""
-    return scale_codes(values, BLOCK, steps, bias, offsets, top)
+    return scale_codes(values, BLOCK, steps, bias, offsets, top, _range_kernels(values.size))
 
 
 def _block_scale(q: np.ndarray, steps: int = SCALE_STEPS, bias: int = 64) -> np.ndarray:

@@ -4,6 +4,8 @@ of every small value's bits under every scale code (the same numbers each way)."
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 HIST_VALUES = 64  # a scale search over blocks whose absolute values are all below this works on their histogram
@@ -11,7 +13,8 @@ BIG_SHARE = 8  # a block with more than 1/BIG_SHARE of its values beyond the bit
 SEARCH_BITS = 1 << 18  # the bits :func:`scale_codes` costs at once (blocks x candidates x values x columns: 2 MB)
 
 
-def scale_codes(values: np.ndarray, block: int, steps: int, bias: int, offsets: range, top: int) -> np.ndarray:
+def scale_codes(values: np.ndarray, block: int, steps: int, bias: int, offsets: range, top: int,
+                kernels: Any = None) -> np.ndarray:
     """Quantised Laplace scale codes ``(blocks, columns)`` int64 (``s = 2 ** ((q - bias) / steps)``, ``0 <= q <=
     top``): per block of ``block`` rows and column of the integers ``values`` ``(rows, columns)``, of the codes
     ``offsets`` away from the one of the mean absolute value, the one under which the block's values cost the
@@ -21,19 +24,31 @@ def scale_codes(values: np.ndarray, block: int, steps: int, bias: int, offsets: 
     The whole blocks whose values are all below :data:`HIST_VALUES` are costed together, a few at a time, from
     their histograms (each block's histogram padded with values it does not hold: their bits count zero times,
     added after the others, so every sum is the one of the block alone); a block of larger values and the last,
-    partial block are costed alone (:func:`_block_codes`): the same codes either way."""
+    partial block are costed alone (:func:`_block_codes`): the same codes either way. ``kernels``: the range coder's
+    compiled kernels (:mod:`.rangekernels`), whose ``histogram_codes`` costs those whole blocks (the same codes,
+    without the bits of every block, candidate, value and column made as arrays), or None."""
     rows, cols = values.shape
     nb = max(1, -(-rows // block))
     q = np.zeros((nb, cols), dtype=np.int64)
     off = np.asarray(offsets, dtype=np.float64)
     whole = rows // block if cols else 0
     per = max(1, SEARCH_BITS // (off.size * max(HIST_VALUES, 1) * max(cols, 1)))
+    if kernels is not None:  # no bits arrays: blocks at once up to a float copy of 2 ** 21 values
+        per = max(1, 8 * SEARCH_BITS // (block * max(cols, 1)))
     for b0 in range(0, whole, per):
         b1 = min(whole, b0 + per)
-        a = np.abs(values[b0 * block:b1 * block]).astype(np.float64).reshape(b1 - b0, block, cols)
+        part = values[b0 * block:b1 * block]
+        a = np.abs(part).astype(np.float64).reshape(b1 - b0, block, cols)
         guess = np.round(np.log2(np.maximum(a.mean(axis=1), 2.0**-6)) * steps) + bias  # (blocks, columns)
         codes = np.clip(guess[:, None, :] + off[None, :, None], 0, top)  # (blocks, candidates, columns)
         tops = a.max(axis=(1, 2))
+        if kernels is not None:
+            kernels.histogram_codes(np.ascontiguousarray(part, dtype=np.int64), block, codes,
+                                    _bits_table(steps, bias), tops < HIST_VALUES, q[b0:b1])
+            for b in np.flatnonzero(tops >= HIST_VALUES):
+                q[b0 + b] = _compiled_block_codes(part[b * block:(b + 1) * block], a[b], codes[b], steps, bias,
+                                                  kernels)
+            continue
         cost = np.empty(codes.shape)
         small = np.flatnonzero(tops < HIST_VALUES)
         if small.size:
@@ -44,6 +59,19 @@ def scale_codes(values: np.ndarray, block: int, steps: int, bias: int, offsets: 
     for b in range(whole, nb):
         q[b] = _block_codes(values[b * block:(b + 1) * block], cols, steps, bias, off, top)
     return q
+
+
+def _compiled_block_codes(values: np.ndarray, a: np.ndarray, codes: np.ndarray, steps: int, bias: int,
+                          kernels: Any) -> np.ndarray:
+    """:func:`code_bits`' choice ``(columns,)`` for a whole block ``values`` ``(rows, columns)`` with values beyond
+    the table (``a``: their absolute values as floats) by the compiled ``block_codes``: the bits of those values
+    computed here (:func:`_point_bits`, as :func:`code_bits` computes them), the others' from the table."""
+    big_r, big_c = np.nonzero(a >= HIST_VALUES)
+    big_bits = _point_bits(a[big_r, big_c][None, :], 2.0 ** ((codes[:, big_c] - float(bias)) / steps))
+    out = np.empty(codes.shape[1], dtype=np.int64)
+    kernels.block_codes(np.ascontiguousarray(values, dtype=np.int64), np.ascontiguousarray(codes), _bits_table(
+        steps, bias), big_r.astype(np.int64), big_c.astype(np.int64), np.ascontiguousarray(big_bits), out)
+    return out
 
 
 def _block_codes(values: np.ndarray, cols: int, steps: int, bias: int, off: np.ndarray, top: int) -> np.ndarray:

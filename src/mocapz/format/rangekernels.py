@@ -5,6 +5,10 @@ constriction's ``RangeDecoder`` (64-bit state, 32-bit words) with ``QuantizedLap
 24-bit precision, reimplemented with the same integer arithmetic and the same CDF expression: the same symbols in
 one pass. The cumulatives of the symbols -15..16 under each column's scale in a scale block are kept as they are
 made (the same integers) and looked up: a mostly-zero column makes two, a busy one a few more.
+
+The encoder's side: :func:`encode_laplace` and :func:`seal` (constriction's ``RangeEncoder``, the same words), and
+the scale search of :mod:`.entropy_costs` over a block's candidate scales (:func:`histogram_codes`,
+:func:`block_codes`: the bits from its table, summed in NumPy's order, the same codes).
 """
 
 from __future__ import annotations
@@ -283,3 +287,80 @@ def seal(state: np.ndarray, out: np.ndarray) -> int:
         out[n] = np.uint32(0)
         n += 1
     return n
+
+
+@njit(cache=True, nogil=True)
+def histogram_codes(values: np.ndarray, block: int, codes: np.ndarray, table: np.ndarray, small: np.ndarray,
+                    out: np.ndarray) -> None:
+    """:func:`~.entropy_costs.scale_codes`' choice for the whole blocks ``small`` marks (``(blocks,)``, the blocks
+    of ``block`` rows whose absolute values are all below ``table``'s width): per block and column of ``values``
+    ``(rows, columns)`` int64, the candidate of ``codes`` ``(blocks, candidates, columns)`` (whole numbers) whose
+    bits from the table ``(256, values)`` weighted by the block's histogram add up the least (the first of the
+    least), into ``out`` ``(blocks, columns)``. The products and their sums are NumPy's of that path, value by
+    value in the same order: the same codes."""
+    rows, cols = values.shape
+    counts = np.zeros((table.shape[1], cols))
+    top = np.zeros(cols, dtype=np.int64)
+    for b in range(small.size):
+        if not small[b]:
+            continue
+        counts[:, :] = 0.0
+        top[:] = 0
+        for r in range(b * block, (b + 1) * block):
+            for c in range(cols):
+                a = abs(values[r, c])
+                counts[a, c] += 1.0
+                if a > top[c]:
+                    top[c] = a
+        for c in range(cols):
+            best = np.inf
+            pick = 0
+            for k in range(codes.shape[1]):
+                code = int(codes[b, k, c])
+                total = 0.0
+                for a in range(top[c] + 1):  # values beyond the column's largest count zero times: exact no-ops
+                    total += table[code, a] * counts[a, c]
+                if total < best:
+                    best = total
+                    pick = k
+            out[b, c] = int(codes[b, pick, c])
+
+
+@njit(cache=True, nogil=True)
+def block_codes(values: np.ndarray, codes: np.ndarray, table: np.ndarray, big_r: np.ndarray, big_c: np.ndarray,
+                big_bits: np.ndarray, out: np.ndarray) -> None:
+    """:func:`~.entropy_costs.code_bits`' choice for one block ``values`` ``(rows, columns)`` int64 holding values
+    beyond the table: per column, the candidate of ``codes`` ``(candidates, columns)`` whose bits summed down the
+    rows cost the least (the first of the least), into ``out`` ``(columns,)``; each value's bits from the table
+    ``(256, values)``, but at ``(big_r[i], big_c[i])`` (the values beyond it) ``big_bits[:, i]``, computed by NumPy
+    (``(candidates, count)``). Summed in NumPy's order, row after row: the same codes."""
+    rows, cols = values.shape
+    cands = codes.shape[0]
+    slot = np.full((rows, cols), -1, dtype=np.int64)
+    for i in range(big_r.size):
+        slot[big_r[i], big_c[i]] = i
+    total = np.empty(cands)
+    rows_of = np.empty(cands, dtype=np.int64)
+    local = np.empty((table.shape[1], cands))  # the column's candidates' table rows, value by value (cached)
+    for c in range(cols):
+        for k in range(cands):
+            total[k] = 0.0
+            rows_of[k] = int(codes[k, c])
+            for a in range(table.shape[1]):
+                local[a, k] = table[rows_of[k], a]
+        for r in range(rows):  # every candidate's sum one row further: independent additions, each in row order
+            i = slot[r, c]
+            if i >= 0:
+                for k in range(cands):
+                    total[k] += big_bits[k, i]
+            else:
+                a = abs(values[r, c])
+                for k in range(cands):
+                    total[k] += local[a, k]
+        best = np.inf
+        pick = 0
+        for k in range(cands):
+            if total[k] < best:
+                best = total[k]
+                pick = k
+        out[c] = rows_of[pick]
