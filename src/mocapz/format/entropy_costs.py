@@ -25,8 +25,9 @@ def scale_codes(values: np.ndarray, block: int, steps: int, bias: int, offsets: 
     their histograms (each block's histogram padded with values it does not hold: their bits count zero times,
     added after the others, so every sum is the one of the block alone); a block of larger values and the last,
     partial block are costed alone (:func:`_block_codes`): the same codes either way. ``kernels``: the range coder's
-    compiled kernels (:mod:`.rangekernels`), whose ``histogram_codes`` costs those whole blocks (the same codes,
-    without the bits of every block, candidate, value and column made as arrays), or None."""
+    compiled kernels (:mod:`.rangekernels`), whose ``histogram_codes`` costs those whole blocks and ``block_codes``
+    the whole blocks of larger values (the same codes, without the bits of every block, candidate, value and column
+    made as arrays), or None."""
     rows, cols = values.shape
     nb = max(1, -(-rows // block))
     q = np.zeros((nb, cols), dtype=np.int64)
@@ -65,7 +66,8 @@ def _compiled_block_codes(values: np.ndarray, a: np.ndarray, codes: np.ndarray, 
                           kernels: Any) -> np.ndarray:
     """:func:`code_bits`' choice ``(columns,)`` for a whole block ``values`` ``(rows, columns)`` with values beyond
     the table (``a``: their absolute values as floats) by the compiled ``block_codes``: the bits of those values
-    computed here (:func:`_point_bits`, as :func:`code_bits` computes them), the others' from the table."""
+    computed here (:func:`_point_bits`, as :func:`code_bits` computes them), the others' from the table (the
+    numbers :func:`code_bits` computes for them where most values are large: tests/test_entropy_speed_equal.py)."""
     big_r, big_c = np.nonzero(a >= HIST_VALUES)
     big_bits = _point_bits(a[big_r, big_c][None, :], 2.0 ** ((codes[:, big_c] - float(bias)) / steps))
     out = np.empty(codes.shape[1], dtype=np.int64)

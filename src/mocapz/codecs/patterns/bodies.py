@@ -27,7 +27,7 @@ from mocapz.model.motion import MarkerMotion, Motion
 MEASURED = 1  # nodes coded before the others' bytes are estimated from the smallest of them (budget.spend). One:
 # over the 40 shared files at the default target, max distortion 0.36 %, max ARMS 5 mm and max error 3 cm, the model
 # won only where its own bytes were 27-40 % of the cap, and a first node was at most 3.5 times a later one's bytes;
-# stopping after the first node instead of the second halves a losing model's cost (06_13: 0.46 s of 2.1)
+# stopping after the first node instead of the second (06_13's losing model: 1.03 -> 0.74 s, profiled)
 
 MARKER_ROOT_STEP = 0.004  # root quantisation steps, fractions of the ADDH (see Settings.root_step)
 JOINT_ROOT_STEP = 0.02
