@@ -92,8 +92,10 @@ def test_damaged_residuals_decode_alike() -> None:
 
 
 @pytest.mark.parametrize("rel", ["cmu/bvh/09_06.bvh", "other/bvh/games105/walk_and_turn_left.bvh"])
-def test_batched_pursuit_matches_column_by_column(rel: str) -> None:
-    """The encoder's batched predictor choice (gap-free clips) gives each column's own choice exactly."""
+def test_batched_pursuit_matches_column_by_column(rel: str, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The encoder's batched predictor choice (gap-free clips) gives each column's own choice exactly, and so does
+    a column's own fit (the path of clips with gaps, run here without its early stop, predict.PATIENCE)."""
+    from mocapz.codecs.lossless import predict
     from mocapz.codecs.lossless.encode import column_groups, value_matrix
     from mocapz.codecs.lossless.integers import choose_form
     from mocapz.codecs.lossless.predict import choose_predictors, coding_order, shared_fit
@@ -110,6 +112,7 @@ def test_batched_pursuit_matches_column_by_column(rel: str) -> None:
     assert shared is not None
     every = np.arange(d2.shape[0])
     one_by_one = [choose_predictors(d2, c, order[:k], every, shared) for k, c in enumerate(order)]
+    monkeypatch.setattr(predict, "PATIENCE", predict.MAX_PREDICTORS + 1)
     unshared = [choose_predictors(d2, c, order[:k], every) for k, c in enumerate(order)]
     batched = choose_shared(shared, order, d2.shape[0])
     for (p1, c1), (p2, c2), (p3, c3) in zip(one_by_one, batched, unshared, strict=True):

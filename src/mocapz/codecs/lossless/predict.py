@@ -26,6 +26,7 @@ MAX_PREDICTORS = 6
 WINDOW = 64  # candidate predictors: the columns coded just before
 FIT_ROWS = 2048  # rows used to choose and fit predictors (evenly spread)
 PREDICTOR_BITS = 24.0  # estimated cost of one predictor (its index and coefficient) in bits
+PATIENCE = 2  # a column's own pursuit (no shared fit) stops after this many steps in a row not lowering its cost
 
 
 def coding_order(groups: list[list[int]]) -> list[int]:
@@ -94,7 +95,10 @@ def choose_predictors(d2: np.ndarray, col: int, before: list[int], rows: np.ndar
 
     Greedy matching pursuit on the normal equations: each step adds the candidate most correlated with the
     least-squares residual; the prefix with the lowest estimated cost (residual bits + :data:`PREDICTOR_BITS`
-    per predictor) wins.
+    per predictor) wins. Where the column has a fit of its own (``shared`` None: a clip with gaps, or with values
+    too large for exact sums) the pursuit stops once :data:`PATIENCE` steps in a row have not lowered the best
+    cost: each step is a fit of that column alone, and most columns of a marker or ASF/AMC clip gain nothing
+    from their first predictor on.
 
     Args:
         d2: ``(frames - 2, columns)`` int64 second differences, final for the columns in ``before``.
@@ -127,6 +131,7 @@ def _pursuit(y: np.ndarray, a: np.ndarray, cand: list[int], gram: np.ndarray, rh
     chosen: list[int] = []
     corr = rhs.copy()
     steps = min(MAX_PREDICTORS, len(cand))
+    idle = 0  # steps since the best cost last fell
     for step in range(steps):
         score = np.abs(corr) / norms
         score[chosen] = -1.0
@@ -135,8 +140,6 @@ def _pursuit(y: np.ndarray, a: np.ndarray, cand: list[int], gram: np.ndarray, rh
             break
         chosen.append(j)
         sol = _lstsq(gram[chosen][:, chosen], rhs[chosen])
-        if step + 1 < steps:  # the correlations of the next step
-            corr = rhs - np.einsum("jk,k->j", gram[:, chosen], sol, optimize=False)
         coef = np.minimum(np.maximum(np.round(sol * (1 << COEF_SHIFT)), -COEF_LIMIT), COEF_LIMIT).astype(np.int64)
         weights = coef / float(1 << COEF_SHIFT)
         if shared:  # exact sums: any order gives these numbers
@@ -144,8 +147,13 @@ def _pursuit(y: np.ndarray, a: np.ndarray, cand: list[int], gram: np.ndarray, rh
         else:
             resid = y - np.einsum("ik,k->i", a[:, chosen], weights, optimize=False)
         cost = _cost(resid) + PREDICTOR_BITS * len(chosen)
+        idle = 0 if cost < best[0] else idle + 1
         if cost < best[0]:
             best = (cost, [cand[i] for i in chosen], coef)
+        if idle >= PATIENCE and not shared:
+            break
+        if step + 1 < steps:  # the correlations of the next step
+            corr = rhs - np.einsum("jk,k->j", gram[:, chosen], sol, optimize=False)
     return best[1], best[2]
 
 
