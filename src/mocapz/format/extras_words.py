@@ -24,6 +24,10 @@ from mocapz.model.c3d_extras import float_values, float_words
 
 XZ_MEMORY = 1 << 26  # the most memory an xz stream here may ask of its decoder
 MODE_INT, MODE_FLOAT_INT, MODE_BITS, MODE_XZ = 0, 1, 2, 3
+# the largest word matrix (bytes) whose raw words are tried row by row through xz as well as column by column: a
+# second of analog samples row by row packs smaller at times (a few blocks of the Eb015 trials, by 36 B), a whole
+# clip's never did on a shared C3D, where it was the slowest candidate (0.66 s of markers_analogs.c3d's 2.1)
+ROW_MAJOR_BYTES = 1 << 18
 
 
 def _bad(what: str) -> FormatError:
@@ -33,18 +37,18 @@ def _bad(what: str) -> FormatError:
 def encode_words(words: np.ndarray, is_float: bool, processor: int) -> bytes:
     """A ``(rows, cols)`` int64 word matrix as the smallest of the codings of the module docstring.
 
-    The mode byte: ``0x03`` / ``0x13`` the raw words row- / column-major through xz; else bits 0-1 the
-    integer form (:data:`MODE_INT`, :data:`MODE_FLOAT_INT`, :data:`MODE_BITS`), bits 2-3 the prediction
-    order, bits 4-5 the back end (0 range coder; 1 / 2: the integers column by column as 2 / 4
-    little-endian byte planes through xz).
+    The mode byte: ``0x03`` / ``0x13`` the raw words row- / column-major through xz (``0x03`` tried up to
+    :data:`ROW_MAJOR_BYTES`); else bits 0-1 the integer form (:data:`MODE_INT`, :data:`MODE_FLOAT_INT`,
+    :data:`MODE_BITS`), bits 2-3 the prediction order, bits 4-5 the back end (0 range coder; 1 / 2: the integers
+    column by column as 2 / 4 little-endian byte planes through xz).
     """
     w = np.asarray(words, dtype=np.int64)
     rows, cols = w.shape
     if w.size == 0:
         return bytes([MODE_INT])
     dtype = "<u4" if is_float else "<i2"
-    xz_inputs = {MODE_XZ: w.astype(dtype).tobytes(),
-                 MODE_XZ | 1 << 4: np.ascontiguousarray(w.T).astype(dtype).tobytes()}
+    xz_inputs = {MODE_XZ: w.astype(dtype).tobytes()} if w.size * (4 if is_float else 2) <= ROW_MAJOR_BYTES else {}
+    xz_inputs[MODE_XZ | 1 << 4] = np.ascontiguousarray(w.T).astype(dtype).tobytes()
     options = []
     for mode, ints in _integer_forms(w, is_float, processor):
         for order in (0, 1, 2):
