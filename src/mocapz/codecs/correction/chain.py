@@ -83,6 +83,12 @@ class Chain:
         self.euler3 = [np.array([sl.start + chs.index(f"{a}rotation") for a in order], dtype=np.int64)
                        if len(order) == 3 and len(set(order.upper())) == 3 else None
                        for sl, chs, order in zip(self.slices, sk.channels, sk.rotation_order, strict=True)]
+        # per joint with one to three distinct rotation axes: their columns in `order` (the compiled compose)
+        self.turns = [e3 if e3 is not None else np.array([sl.start + chs.index(f"{a}rotation") for a in order],
+                                                          dtype=np.int64)
+                      if 1 <= len(order) <= 2 and len(set(order.upper())) == len(order) else None
+                      for e3, sl, chs, order in zip(self.euler3, self.slices, sk.channels, sk.rotation_order,
+                                                    strict=True)]
         # the joints turning about one or two axes that aim their bone at the original child (:mod:`.hinge`)
         self.hinge = [hinge.columns(sk, j, sl.start, moving, int(self.aim[j])) for j, sl in enumerate(self.slices)]
         # per joint, what every round of the loop asks for: the columns coded against their own original, the
@@ -207,7 +213,7 @@ class Chain:
     def _global(self, j: int, gp: np.ndarray, values: np.ndarray, kern: ModuleType | None) -> np.ndarray:
         """Decoded global rotations ``(frames, 3, 3)`` of joint ``j`` from its parent's ``gp`` (a root: none) and
         its decoded channel values ``(frames, its channels)``."""
-        cols = self.euler3[j]
+        cols = self.turns[j]
         p = self.skeleton.parents[j]
         if kern is not None and cols is not None:
             out = np.empty((values.shape[0], 3, 3))

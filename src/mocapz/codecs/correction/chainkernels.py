@@ -43,10 +43,10 @@ def _axis_rot(axis: int, t: float, out: np.ndarray) -> None:
 
 @jit
 def _euler(angles: np.ndarray, axes: np.ndarray, r: np.ndarray) -> None:
-    """Intrinsic Euler rotation of three ``angles`` (radians) about ``axes`` into ``r`` (3, 3), as
+    """Intrinsic Euler rotation of ``angles`` (radians) about ``axes`` (one to three of them) into ``r`` (3, 3), as
     :func:`mocapz.model.kinematics.euler_rotations`."""
     _axis_rot(axes[0], angles[0], r)
-    for k in range(1, 3):
+    for k in range(1, axes.size):
         axis = axes[k]
         i, j = (axis + 1) % 3, (axis + 2) % 3
         c, s = math.cos(angles[k]), math.sin(angles[k])
@@ -167,14 +167,15 @@ def goal_angles(gp, p, j: int, parent: int, goal_rot, positions, aim: int, cos_m
 @jit
 def compose(gj, gp, parent: int, values, scale: float, axes, axis, turned: bool, rows) -> None:
     """Decoded global rotation of a joint into ``gj``: the decoded parent's ``gp`` (a root: none, ``parent``
-    < 0) times the local rotation of the decoded Euler ``values`` ``(frames, 3)`` (file unit) about ``axes``, in
-    the joint's ``axis`` frame when ``turned`` (ASF); on the frames ``rows`` only."""
+    < 0) times the local rotation of the decoded Euler ``values`` ``(frames, axes)`` (file unit) about ``axes``
+    (three, or the one or two of an ASF hinge), in the joint's ``axis`` frame when ``turned`` (ASF); on the
+    frames ``rows`` only."""
     loc = np.empty((3, 3))
     tmp = np.empty((3, 3))
-    ang = np.empty(3)
+    ang = np.empty(axes.size)
     for row in range(rows.size):
         f = rows[row]
-        for a in range(3):
+        for a in range(axes.size):
             ang[a] = values[f, a] * scale
         _euler(ang, axes, loc)
         if turned:
