@@ -123,3 +123,31 @@ def test_a_bvh_with_one_axis_knees_and_elbows_aims_them(tmp_path: Path, monkeypa
     assert report.max_err_cm <= 1.0 and report.foot_skate * m.unit_cm <= 0.5 and report.jitter_pct <= 4.5
     monkeypatch.setattr(hinge, "columns", lambda *args: None)
     assert len(aimed) < 0.9 * len(mocapz.compress(m, codec="quant"))
+
+
+@pytest.mark.parametrize("wobble", [0.03, 0.6])
+def test_the_compiled_hinge_aim_is_numpys(amc: tuple, wobble: float) -> None:
+    """:func:`.chainkernels.hinge_residual` gives :meth:`Chain._hinge_residual`'s NumPy residuals to float rounding,
+    on every hinge (one axis and two) under parents decoded a little or far off (``wobble`` radians: far enough
+    that many frames keep their original angles)."""
+    from mocapz.codecs.correction.compiled import kernels  # noqa: PLC0415
+
+    kern = kernels(1 << 30)  # whatever the clip's length (numba loaded where not compiled ahead of time)
+    if kern is None:
+        pytest.skip("no compiled kernels")
+    m, pos, g, chain = amc
+    rng = np.random.default_rng(11)
+    sk = m.skeleton
+    seen = set()
+    for j, cols in enumerate(chain.hinge):
+        if cols is None:
+            continue
+        seen.add(len(cols))
+        gp = np.ascontiguousarray(Rotation.from_rotvec(rng.normal(scale=wobble, size=(m.n_frames, 3))).as_matrix()
+                                  @ g[:, sk.parents[j]])
+        p_dec = pos + rng.normal(scale=0.3, size=pos.shape)
+        plain, fast = np.zeros_like(m.channels), np.zeros_like(m.channels)
+        chain._hinge_residual(j, gp, p_dec, m.channels, plain)
+        chain._hinge_residual(j, gp, p_dec, m.channels, fast, kern)
+        assert np.abs(fast - plain).max() <= 1e-9, sk.names[j]
+    assert seen == {1, 2}

@@ -84,11 +84,9 @@ class Chain:
                        if len(order) == 3 and len(set(order.upper())) == 3 else None
                        for sl, chs, order in zip(self.slices, sk.channels, sk.rotation_order, strict=True)]
         # per joint with one to three distinct rotation axes: their columns in `order` (the compiled compose)
-        self.turns = [e3 if e3 is not None else np.array([sl.start + chs.index(f"{a}rotation") for a in order],
-                                                          dtype=np.int64)
-                      if 1 <= len(order) <= 2 and len(set(order.upper())) == len(order) else None
-                      for e3, sl, chs, order in zip(self.euler3, self.slices, sk.channels, sk.rotation_order,
-                                                    strict=True)]
+        self.turns = [e3 if e3 is not None or not 1 <= len(o) <= 2 or len(set(o.upper())) != len(o)
+                      else np.array([sl.start + chs.index(f"{a}rotation") for a in o], dtype=np.int64)
+                      for e3, sl, chs, o in zip(self.euler3, self.slices, sk.channels, sk.rotation_order, strict=True)]
         # the joints turning about one or two axes that aim their bone at the original child (:mod:`.hinge`)
         self.hinge = [hinge.columns(sk, j, sl.start, moving, int(self.aim[j])) for j, sl in enumerate(self.slices)]
         # per joint, what every round of the loop asks for: the columns coded against their own original, the
@@ -186,7 +184,7 @@ class Chain:
                 if rot is not None:
                     self._goal_residual(j, gp, p_dec, kern, base, x, moved_p[j] | moved_g[p])
                 else:
-                    self._hinge_residual(j, gp, p_dec, base, x)
+                    self._hinge_residual(j, gp, p_dec, base, x, kern)
                 _put(q, y, aimed, *lifting.quantise(x[:, aimed], tol[:, aimed], levels, shrink, compiled,
                                                     None if prefix is None else prefix[aimed]), changed,
                      sl.start, again)
@@ -239,13 +237,18 @@ class Chain:
             at = np.ix_(rows, rot)
             goal[at] = np.mod(angles[rows] - base[at] + half, self.period) - half
 
-    def _hinge_residual(self, j: int, gp: np.ndarray, p_dec: np.ndarray, base: np.ndarray, goal: np.ndarray) -> None:
+    def _hinge_residual(self, j: int, gp: np.ndarray, p_dec: np.ndarray, base: np.ndarray, goal: np.ndarray,
+                        kern: ModuleType | None = None) -> None:
         """The residual of hinge ``j``'s rotation columns against the angles that aim its bone from the decoded
         joint (positions ``p_dec`` ``(frames, joints, 3)``) at the original child under the decoded parent
         (global rotations ``gp`` ``(frames, 3, 3)``) (:func:`.hinge.aim`), wrapped, into ``goal`` ``(frames,
         columns)``, on every frame (a few products per frame)."""
         sk, cols, child = self.skeleton, self.hinge[j], int(self.aim[j])
         a = self.axis_of[j]
+        if kern is not None:  # the same, frame by frame (to float rounding)
+            kern.hinge_residual(gp, p_dec, j, child, self.positions, a, a.T @ hinge.child_offset(sk, child),
+                                self.axes[j], self.scale, self.values, cols, base, self.period, MAX_TURN, goal)
+            return
         to_child = np.einsum("fba,fb->fa", gp, self.positions[:, child] - p_dec[:, j]) @ a  # in j's axis frame
         near = self.values[:, cols]
         angles, ok = hinge.aim(sk.rotation_order[j], a.T @ hinge.child_offset(sk, child), to_child,

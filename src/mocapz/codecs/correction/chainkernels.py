@@ -187,3 +187,103 @@ def compose(gj, gp, parent: int, values, scale: float, axes, axis, turned: bool,
             _mul_rows(gp, f, loc, gj)
         else:
             gj[f, :, :] = loc
+
+
+@jit
+def remainder(a: float, b: float) -> float:
+    """NumPy's ``np.mod`` of floats (``b > 0``): ``fmod``, then the divisor's sign."""
+    mod = np.fmod(a, b)
+    if mod != 0.0:
+        if (b < 0.0) != (mod < 0.0):
+            mod += b
+    else:
+        mod = math.copysign(0.0, b)
+    return mod
+
+
+@jit
+def _about(e, v, u) -> float:
+    """The angle about unit axis ``e`` (3,) that brings ``v``'s component across ``e`` onto ``u``'s (one frame of
+    :func:`.hinge._about`)."""
+    ve = v[0] * e[0] + v[1] * e[1] + v[2] * e[2]
+    ue = u[0] * e[0] + u[1] * e[1] + u[2] * e[2]
+    vp0, vp1, vp2 = v[0] - ve * e[0], v[1] - ve * e[1], v[2] - ve * e[2]
+    up0, up1, up2 = u[0] - ue * e[0], u[1] - ue * e[1], u[2] - ue * e[2]
+    c0, c1, c2 = vp1 * up2 - vp2 * up1, vp2 * up0 - vp0 * up2, vp0 * up1 - vp1 * up0
+    return math.atan2(c0 * e[0] + c1 * e[1] + c2 * e[2], vp0 * up0 + vp1 * up1 + vp2 * up2)
+
+
+@jit
+def _nearest(angle: float, near: float) -> float:
+    """``angle`` plus the whole turns that bring it nearest ``near`` (radians)."""
+    return angle + 2.0 * np.pi * np.rint((near - angle) / (2.0 * np.pi))
+
+
+@jit
+def hinge_residual(gp, p, j: int, child: int, positions, axis, bone, axes, scale: float, values, cols, base,
+                   period: float, max_turn: float, goal) -> None:
+    """:meth:`.chain.Chain._hinge_residual` (:func:`.hinge.aim`) frame by frame: the angles about the one or two
+    ``axes`` of hinge ``j`` (columns ``cols``, in rotation order) that, under the decoded parent (``gp``) and from
+    the decoded joint (``p``), turn its ``bone`` (3,) (in its ``axis`` frame) toward the original point ``child``,
+    nearest the original angles (``values``; kept where the bone cannot reach or would turn over ``max_turn``
+    radians), as residuals against ``base``, wrapped, into ``goal`` ``(frames, columns)``."""
+    n = axes.size
+    half = period / 2.0
+    e = np.zeros((2, 3))
+    for k in range(n):
+        e[k, axes[k]] = 1.0
+    n_bone = math.sqrt(bone[0] * bone[0] + bone[1] * bone[1] + bone[2] * bone[2])
+    v = bone / (n_bone if n_bone > 0 else 1.0)
+    a, b = e[0], e[n - 1]
+    vb = v[0] * b[0] + v[1] * b[1] + v[2] * b[2]
+    across = v - vb * b
+    bxv = np.array([b[1] * v[2] - b[2] * v[1], b[2] * v[0] - b[0] * v[2], b[0] * v[1] - b[1] * v[0]])
+    pa = across[0] * a[0] + across[1] * a[1] + across[2] * a[2]
+    qa = bxv[0] * a[0] + bxv[1] * a[1] + bxv[2] * a[2]
+    reach = math.hypot(pa, qa)
+    phi = math.atan2(qa, pa)
+    w = np.empty(3)
+    t = np.empty(3)
+    u = np.empty(3)
+    turned = np.empty(3)
+    out = np.empty(2)
+    near = np.empty(2)
+    for f in range(goal.shape[0]):
+        for c in range(3):
+            w[c] = positions[f, child, c] - p[f, j, c]
+        for c in range(3):  # the goal in the joint's axis frame: (gp^T w) @ axis
+            t[c] = 0.0
+        for c in range(3):
+            g = gp[f, 0, c] * w[0] + gp[f, 1, c] * w[1] + gp[f, 2, c] * w[2]
+            for k in range(3):
+                t[k] += g * axis[c, k]
+        n_goal = math.sqrt(t[0] * t[0] + t[1] * t[1] + t[2] * t[2])
+        ok = n_goal > 0 and n_bone > 0
+        for c in range(3):
+            u[c] = t[c] / (n_goal if ok else 1.0)
+        for k in range(n):
+            near[k] = values[f, cols[k]] * scale
+        if n == 1:
+            out[0] = _about(a, v, u)
+        else:
+            ok = ok and reach > 0
+            ua = u[0] * a[0] + u[1] * a[1] + u[2] * a[2]
+            spread = math.acos(min(1.0, max(-1.0, ua / (reach if reach > 0 else 1.0))))
+            first, second = _nearest(phi + spread, near[1]), _nearest(phi - spread, near[1])
+            beta = first if abs(first - near[1]) <= abs(second - near[1]) else second
+            cb, sb = math.cos(beta), math.sin(beta)
+            for c in range(3):
+                turned[c] = vb * b[c] + cb * across[c] + sb * bxv[c]
+            out[0], out[1] = _about(a, turned, u), beta
+        out[0] = _nearest(out[0], near[0])
+        for k in range(n):
+            ok = ok and abs(out[k] - near[k]) < max_turn
+        for k in range(n):
+            col = cols[k]
+            raw = values[f, col]
+            angle = out[k] / scale
+            angle += period * np.rint((raw - angle) / period)
+            if not ok:
+                angle = raw
+            goal[f, col] = remainder(angle - base[f, col] + half, period) - half
+

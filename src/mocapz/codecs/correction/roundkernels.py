@@ -26,23 +26,12 @@ import numpy as np
 from numba import njit
 
 from mocapz.codecs.correction.chainkernels import compose, goal_angles, place
+from mocapz.codecs.correction.chainkernels import remainder as _remainder  # noqa: F401  (run's NumPy mod)
 from mocapz.codecs.correction.liftkernels import details
 
 jit = njit(cache=True, nogil=True, error_model="numpy")
 
 BIG = 1e30  # :data:`.lifting.BIG`
-
-
-@jit
-def _remainder(a: float, b: float) -> float:
-    """NumPy's ``np.mod`` of floats (``b > 0``): ``fmod``, then the divisor's sign."""
-    mod = np.fmod(a, b)
-    if mod != 0.0:
-        if (b < 0.0) != (mod < 0.0):
-            mod += b
-    else:
-        mod = math.copysign(0.0, b)
-    return mod
 
 
 @jit
