@@ -149,7 +149,7 @@ class Chain:
                 or not np.array_equal(prev.t0, tol.t0) else (prev.q, prev.levels, prev.rot)  # type: ignore[union-attr]
             last = prev = None  # its rotations are updated in place, or let go before new ones are made
             q, pos, rot = chainround.quantise(self, round_kern, x, base, tol, levels, shrink,  # type: ignore[arg-type]
-                                              prefix, y, before, COS_TURN)
+                                              prefix, y, before, COS_TURN, MAX_TURN)
             self.last = _Last(x, base, (levels, shrink), y, q, tol.t0.copy(),  # type: ignore[union-attr]
                               np.array(tol.levels, copy=True), rot)  # type: ignore[union-attr]
             return q, y, pos
@@ -247,7 +247,8 @@ class Chain:
         a = self.axis_of[j]
         if kern is not None:  # the same, frame by frame (to float rounding)
             kern.hinge_residual(gp, p_dec, j, child, self.positions, a, a.T @ hinge.child_offset(sk, child),
-                                self.axes[j], self.scale, self.values, cols, base, self.period, MAX_TURN, goal)
+                                self.axes[j], self.scale, self.values, cols, base, self.period, MAX_TURN, goal,
+                                np.arange(len(goal)))
             return
         to_child = np.einsum("fba,fb->fa", gp, self.positions[:, child] - p_dec[:, j]) @ a  # in j's axis frame
         near = self.values[:, cols]

@@ -221,12 +221,13 @@ def _nearest(angle: float, near: float) -> float:
 
 @jit
 def hinge_residual(gp, p, j: int, child: int, positions, axis, bone, axes, scale: float, values, cols, base,
-                   period: float, max_turn: float, goal) -> None:
+                   period: float, max_turn: float, goal, rows) -> None:
     """:meth:`.chain.Chain._hinge_residual` (:func:`.hinge.aim`) frame by frame: the angles about the one or two
     ``axes`` of hinge ``j`` (columns ``cols``, in rotation order) that, under the decoded parent (``gp``) and from
     the decoded joint (``p``), turn its ``bone`` (3,) (in its ``axis`` frame) toward the original point ``child``,
     nearest the original angles (``values``; kept where the bone cannot reach or would turn over ``max_turn``
-    radians), as residuals against ``base``, wrapped, into ``goal`` ``(frames, columns)``."""
+    radians), as residuals against ``base``, wrapped, into ``goal`` ``(frames, columns)``; on the frames ``rows``
+    only (each frame on its own)."""
     n = axes.size
     half = period / 2.0
     e = np.zeros((2, 3))
@@ -248,7 +249,8 @@ def hinge_residual(gp, p, j: int, child: int, positions, axis, bone, axes, scale
     turned = np.empty(3)
     out = np.empty(2)
     near = np.empty(2)
-    for f in range(goal.shape[0]):
+    for row in range(rows.size):
+        f = rows[row]
         for c in range(3):
             w[c] = positions[f, child, c] - p[f, j, c]
         for c in range(3):  # the goal in the joint's axis frame: (gp^T w) @ axis

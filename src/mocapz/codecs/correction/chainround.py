@@ -1,8 +1,8 @@
 """A round of the closed loop in one compiled call (:mod:`.roundkernels`): what the call needs of a skeleton, as
 arrays made once per :class:`~.chain.Chain` (:class:`RoundPlan`), and the call itself (:func:`quantise`).
 
-:meth:`.chain.Chain.quantise` takes this path with the compiled kernels where every joint's rotation channels are
-three distinct axes or none (BVH, most ASF), the tolerances are per column (:class:`.bounds.ColumnTolerances`, as
+:meth:`.chain.Chain.quantise` takes this path with the compiled kernels where no joint repeats a rotation axis (BVH,
+ASF with its one- and two-axis hinges), the tolerances are per column (:class:`.bounds.ColumnTolerances`, as
 the verification rounds make them) and the values are finite; otherwise its per-joint loop (the same numbers).
 """
 
@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from mocapz.codecs.correction import lifting
+from mocapz.codecs.correction import hinge, lifting
 from mocapz.codecs.correction.bounds import ColumnTolerances
 
 Chain = Any  # a :class:`.chain.Chain` (which imports this module)
@@ -32,11 +32,12 @@ class RoundPlan:
 
 
 def plan(chain: Chain) -> RoundPlan | None:
-    """The arrays of ``chain``'s skeleton, or None where a joint has one or two rotation channels or repeated
-    axes (its rotation is composed by the per-joint path's NumPy product)."""
+    """The arrays of ``chain``'s skeleton (joints with one to three distinct rotation axes, ASF hinges aimed at
+    their child), or None where a joint repeats an axis (its rotation is composed by the per-joint path's NumPy
+    product)."""
     sk = chain.skeleton
     n = sk.n_joints
-    if any(chain.euler3[j] is None and sk.rotation_order[j] for j in range(n)):
+    if any(chain.turns[j] is None and sk.rotation_order[j] for j in range(n)):
         return None
     width = max((sl.stop - sl.start for sl in chain.slices), default=0)
     a: dict[str, np.ndarray] = {
@@ -47,7 +48,11 @@ def plan(chain: Chain) -> RoundPlan | None:
         "plain_idx": np.concatenate([np.asarray(p, dtype=np.int64) for p in chain.plain] or [np.zeros(0, np.int64)]),
         "feedback": np.asarray(chain.feedback, dtype=np.bool_),
         "rot_cols": np.zeros((n, 3), dtype=np.int64),
-        "euler3": np.array([c is not None for c in chain.euler3], dtype=np.bool_),
+        "euler3": np.array([c is not None for c in chain.turns], dtype=np.bool_),  # one to three axes
+        "turn_n": np.array([0 if c is None else len(c) for c in chain.turns], dtype=np.int64),
+        "hinge_n": np.array([0 if c is None else len(c) for c in chain.hinge], dtype=np.int64),
+        "hinge_cols": np.zeros((n, 2), dtype=np.int64),
+        "bones": np.zeros((n, 3)),
         "e3_cols": np.zeros((n, 3), dtype=np.int64),
         "all_cols": np.full((n, max(width, 1)), -1, dtype=np.int64),
         "axes": np.zeros((n, 3), dtype=np.int64),
@@ -65,9 +70,13 @@ def plan(chain: Chain) -> RoundPlan | None:
     for j in range(n):
         sl = chain.slices[j]
         a["all_cols"][j, : sl.stop - sl.start] = np.arange(sl.start, sl.stop)
-        if chain.euler3[j] is not None:
-            a["e3_cols"][j] = chain.euler3[j]
-            a["axes"][j] = chain.axes[j]
+        if chain.turns[j] is not None:
+            k = len(chain.turns[j])
+            a["e3_cols"][j, :k] = chain.turns[j]
+            a["axes"][j, :k] = chain.axes[j]
+        if chain.hinge[j] is not None:
+            a["hinge_cols"][j, :len(chain.hinge[j])] = chain.hinge[j]
+            a["bones"][j] = chain.axis_of[j].T @ hinge.child_offset(sk, int(chain.aim[j]))
         if chain.feedback[j]:
             a["rot_cols"][j] = chain.rot_cols[j]
             i, k, m = ("XYZ".index(c) for c in sk.rotation_order[j].upper())
@@ -108,7 +117,7 @@ def usable(chain: Chain, x: np.ndarray, base: np.ndarray, tol: object) -> bool:
 def quantise(chain: Chain, kern: ModuleType, x: np.ndarray, base: np.ndarray, tol: ColumnTolerances, levels: int,
              shrink: float, prefix: np.ndarray | None, y: np.ndarray,
              before: tuple[np.ndarray, np.ndarray, np.ndarray | None] | None,
-             cos_turn: float) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+             cos_turn: float, max_turn: float) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
     """:meth:`.chain.Chain.quantise`'s round in one call: fills ``y`` ``(frames, columns)`` and returns the integers
     ``(n, columns)``, the decoded positions ``(frames, points, 3)`` and every joint's decoded global rotations
     ``(joints, frames, 3, 3)`` where they are kept for the next call (at most :data:`KEPT_BYTES`; else None).
@@ -148,7 +157,7 @@ def quantise(chain: Chain, kern: ModuleType, x: np.ndarray, base: np.ndarray, to
              a["plain_ptr"], a["plain_idx"], a["feedback"], a["rot_cols"], a["euler3"], a["e3_cols"], a["all_cols"],
              a["axes"], a["axis_frames"], a["turned"], a["aim"], a["ijk"], a["signs"], a["goal_of"], chain.goal_all,
              chain.positions, chain.values, a["pos_axis"], a["offsets"], slot, a["end_slot"], chain.scale,
-             chain.period, cos_turn)
+             chain.period, cos_turn, a["turn_n"], a["hinge_n"], a["hinge_cols"], a["bones"], max_turn)
     for e, (j, off, _) in enumerate(sk.end_sites):
         pos[:, sk.n_joints + e] = pos[:, j] + ends[a["end_slot"][j]] @ np.asarray(off)
     return q, pos, kept

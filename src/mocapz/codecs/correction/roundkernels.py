@@ -25,8 +25,8 @@ import math
 import numpy as np
 from numba import njit
 
-from mocapz.codecs.correction.chainkernels import compose, goal_angles, place
-from mocapz.codecs.correction.chainkernels import remainder as _remainder  # noqa: F401  (run's NumPy mod)
+from mocapz.codecs.correction.chainkernels import compose, goal_angles, hinge_residual, place
+from mocapz.codecs.correction.chainkernels import remainder as _remainder
 from mocapz.codecs.correction.liftkernels import details
 
 jit = njit(cache=True, nogil=True, error_model="numpy")
@@ -122,7 +122,7 @@ def run(x, base, t0, group, levels, lo: int, halves, lv: int, n: int, factors, s
         prefix, y, q, pos, slots, ends, moved_p, moved_g, again: bool, kept: bool, dirty_groups, parents, starts,
         stops, plain_ptr, plain_idx, feedback, rot_cols, euler3, e3_cols, all_cols, axes, axis_frames, turned, aim,
         ijk, signs, goal_of, goal_all, positions, values, pos_axis, offsets, slot, end_slot, scale: float,
-        period: float, cos_turn: float) -> None:
+        period: float, cos_turn: float, turn_n, hinge_n, hinge_cols, bones, max_turn: float) -> None:
     """One round of the closed loop over every joint (:meth:`~.chain.Chain.quantise`): ``y``, ``q``, the joints'
     rows of ``pos`` and ``ends`` filled, the feedback joints' rotation columns of ``x`` set to their residual
     against the goal (on the frames where something above them moved, when ``again``), ``moved_p`` and
@@ -135,11 +135,13 @@ def run(x, base, t0, group, levels, lo: int, halves, lv: int, n: int, factors, s
     Per joint: ``parents``, ``starts``/``stops`` (its columns), ``plain_idx[plain_ptr[j]:plain_ptr[j + 1]]`` the
     columns coded against their own original, ``feedback`` and ``rot_cols`` ``(joints, 3)``, ``euler3`` and
     ``e3_cols`` ``(joints, 3)`` (its three distinct rotation axes' columns; joints without are those with no
-    rotation channel), ``all_cols`` ``(joints, 6)`` its columns (-1 past them), ``axes`` ``(joints, 3)``,
+    rotation channel; ``turn_n`` of them, one to three), ``all_cols`` ``(joints, 6)`` its columns (-1 past them),
+    ``axes`` ``(joints, 3)``,
     ``axis_frames`` ``(joints, 3, 3)``, ``turned``, ``aim``, ``ijk`` ``(joints, 3)`` and ``signs`` (the Euler
     extraction), ``goal_of`` its row of ``goal_all`` ``(feedback joints, frames, 3, 3)``, ``pos_axis`` ``(joints,
     3)`` the column of each position channel (-1: the ``offsets``' value), ``slot`` and ``end_slot`` (-1: no end
-    site)."""
+    site); a hinge (``hinge_n`` columns ``hinge_cols`` ``(joints, 2)``, one or two axes) aims its ``bones`` ``(joints,
+    3)`` at its child ``aim``, turning at most ``max_turn`` radians."""
     frames = x.shape[0]
     half = period / 2.0
     trans = np.empty((frames, 3))
@@ -149,6 +151,7 @@ def run(x, base, t0, group, levels, lo: int, halves, lv: int, n: int, factors, s
     picked = np.empty(frames, dtype=np.int64)
     own = np.empty(frames, dtype=np.bool_)
     dirty_x = np.zeros(x.shape[1], dtype=np.bool_)  # the residual columns rewritten with other values
+    prev = np.empty((frames, 2))  # a hinge's residual before this round (its columns rewritten with others)
     eye = np.eye(3)
     for j in range(parents.size):
         p = parents[j]
@@ -189,7 +192,27 @@ def run(x, base, t0, group, levels, lo: int, halves, lv: int, n: int, factors, s
                         x[f, c] = v
             _lift(x, rot, t0, group, levels, lo, halves, lv, n, factors, step_scale, pre, prefix, y, q, changed,
                   start, again, dirty_groups, dirty_x)
-        _any(changed, e3_cols[j] if euler3[j] else all_cols[j, :width], start, again, own)
+        elif hinge_n[j] > 0:  # a hinge aimed at its child (:func:`.chainkernels.hinge_residual`)
+            hc = hinge_cols[j, :hinge_n[j]]
+            count = 0
+            for f in range(frames):
+                if not again or moved_p[j, f] or moved_g[p, f]:
+                    picked[count] = f
+                    count += 1
+            if count:
+                rows = picked[:count]
+                for r in range(count):
+                    for k in range(hc.size):
+                        prev[r, k] = x[rows[r], hc[k]]
+                hinge_residual(gp, pos, j, aim[j], positions, axis_frames[j], bones[j], axes[j, :turn_n[j]], scale,
+                               values, hc, base, period, max_turn, x, rows)
+                for r in range(count):
+                    for k in range(hc.size):
+                        if x[rows[r], hc[k]] != prev[r, k]:
+                            dirty_x[hc[k]] = True
+            _lift(x, hc, t0, group, levels, lo, halves, lv, n, factors, step_scale, pre, prefix, y, q, changed,
+                  start, again, dirty_groups, dirty_x)
+        _any(changed, e3_cols[j] if turn_n[j] == 3 else all_cols[j, :width], start, again, own)
         for f in range(frames):
             moved_g[j, f] = own[f] if p < 0 else own[f] or moved_g[p, f]
         gj = slots[slot[j]]
@@ -201,12 +224,16 @@ def run(x, base, t0, group, levels, lo: int, halves, lv: int, n: int, factors, s
                     picked[count] = f
                     count += 1
             rows = picked[:count]
-        if euler3[j]:
-            for a in range(3):
+        if euler3[j]:  # one to three rotation axes
+            k = turn_n[j]
+            for a in range(k):
                 col = e3_cols[j, a]
                 for f in range(frames):
                     vals[f, a] = base[f, col] + y[f, col]
-            compose(gj, gp, p, vals, scale, axes[j], axis_frames[j], turned[j], rows)
+            if k == 3:
+                compose(gj, gp, p, vals, scale, axes[j], axis_frames[j], turned[j], rows)
+            else:
+                compose(gj, gp, p, vals[:, :k], scale, axes[j, :k], axis_frames[j], turned[j], rows)
         else:  # no rotation channel: the parent's rotation times the identity, as NumPy's product gives it
             for r in range(rows.size):
                 f = rows[r]
