@@ -93,13 +93,14 @@ def test_a_window_decodes_a_small_share_of_the_values(coded: dict, monkeypatch: 
 
 
 def test_the_seekable_layout_costs_little(monkeypatch: pytest.MonkeyPatch) -> None:
-    """The same clip and target, the seekable layout against the single streams of shorter clips: within 2 %."""
+    """The same clip and target, the seekable layout against the single streams of shorter clips: within 2 % (on
+    06_13 since the sparse planes' shallow zstd search, planes.SPARSE_SEARCH_LOG, 0.3 % smaller than them)."""
     m = _clip("cmu/bvh/06_13.bvh", 4906)
     seekable_size = len(mocapz.compress(m, codec="quant"))
     monkeypatch.setattr(window, "SEEK_MIN", 10**9)
     plain = mocapz.compress(m, codec="quant")
     assert Container.from_bytes(plain).sections["c.head"][0] == 2
-    assert len(plain) < seekable_size < 1.02 * len(plain)
+    assert seekable_size < 1.02 * len(plain)
 
 
 def test_clips_under_the_threshold_keep_the_single_streams() -> None:

@@ -67,10 +67,12 @@ def test_lossy_stream_meets_its_target_near_the_offline_size() -> None:
     # 93 B (+10.2 %) since a block's lifting parts go into one range stream, 89 B (+9.7 %) since a repeat record's
     # kind says whether the block continues; 45 B (+4.9 %) since the feet's speed and the jitter are held on the
     # stream's sums (a block held its feet on its own planted frames, and smoothing earned no allowance); 14 B
-    # (+1.5 %: 9,238 against 9,098 B) since the groups all zero in a block's lifting parts are masked
+    # (+1.5 %: 9,238 against 9,098 B) since the groups all zero in a block's lifting parts are masked; the stream's
+    # bytes the same, 389 B (+4.3 %: 9,386 against 8,997 B) since the offline file's large sparse detail planes take
+    # zstd's shallow search (planes.SPARSE_SEARCH_LOG: 151 B smaller; a stream's 1-s blocks have none that large)
     offline = mocapz.compress(m, "quant", max_error="1cm")
-    assert len(data) - len(offline) <= 30 * math.ceil(m.n_frames / m.frame_rate)
-    assert len(data) <= 1.04 * len(offline)  # issue 13: within 10 % of the offline file
+    assert len(data) - len(offline) <= 40 * math.ceil(m.n_frames / m.frame_rate)
+    assert len(data) <= 1.05 * len(offline)  # issue 13: within 10 % of the offline file
 
 
 def test_decoder_yields_blocks_as_bytes_arrive() -> None:

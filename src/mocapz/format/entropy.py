@@ -115,13 +115,14 @@ def range_writer(values: int = 0) -> RangeWriter:
 
 
 # ---------------------------------------------------------------- public API
-def encode_int_matrix(values: np.ndarray, coder: int | None = None) -> bytes:
+def encode_int_matrix(values: np.ndarray, coder: int | None = None, *, sparse: bool = False) -> bytes:
     """Entropy-code a ``(rows, columns)`` integer matrix (e.g. prediction residuals).
 
     Columns are modelled independently with a Laplace scale per block of 256 rows; best for
     zero-centred residuals. A mostly-zero matrix whose non-zeros come in runs (tightening levels, the
     finest lifting details, clustered on a few frames) is smaller as zstd-packed byte planes, which the
-    encoder then chooses (``coder`` None). Returns a self-describing byte string (shape included).
+    encoder then chooses (``coder`` None). Returns a self-describing byte string (shape included). ``sparse``: the
+    matrix is mostly zero (the zstd planes' search, :func:`~mocapz.format.planes.pack_zigzag_columns`).
     """
     v = np.ascontiguousarray(values, dtype=np.int64)
     if v.ndim == 1:
@@ -134,11 +135,11 @@ def encode_int_matrix(values: np.ndarray, coder: int | None = None) -> bytes:
         elif v.size == 0 or np.count_nonzero(v) > SPARSE * v.size:
             return encode_int_matrix(v, CODER_RANGE_DELTA)
         else:  # the zstd trial first: its work space is let go before the range coder's arrays are made
-            packed = encode_int_matrix(v, CODER_ZSTD)
+            packed = encode_int_matrix(v, CODER_ZSTD, sparse=True)
             ranged = encode_int_matrix(v, CODER_RANGE_DELTA)
             return packed if len(packed) < len(ranged) else ranged
     if coder == CODER_ZSTD or v.size == 0:
-        return bytes([CODER_ZSTD]) + head + pack_zigzag_columns(v)
+        return bytes([CODER_ZSTD]) + head + pack_zigzag_columns(v, sparse)
     if coder == CODER_RANGE_DELTA:
         return _encode_delta(v, head)
     q = _block_scales(v)

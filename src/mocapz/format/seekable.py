@@ -43,7 +43,7 @@ def encode_segments(values: np.ndarray, starts: Sequence[int]) -> bytes:
         return bytes([SEG_ZSTD]) + encode_int_matrix(v, entropy.CODER_ZSTD)
     ranged = _encode_range(v, starts)
     if np.count_nonzero(v) <= entropy.SPARSE * v.size:
-        packed = bytes([SEG_ZSTD]) + encode_int_matrix(v, entropy.CODER_ZSTD)
+        packed = bytes([SEG_ZSTD]) + encode_int_matrix(v, entropy.CODER_ZSTD, sparse=True)
         if len(packed) < len(ranged):
             return packed
     return ranged
