@@ -24,9 +24,11 @@ class Clip:
     other_pos: np.ndarray  # (F, p) non-root position channel values
 
 
-def analyse(skeleton: Skeleton, channels: np.ndarray) -> Clip:
-    """Break channel values ``(F, C)`` (file units and the skeleton's angle unit) into a :class:`Clip`."""
-    rot = local_rotations(skeleton, channels)
+def analyse(skeleton: Skeleton, channels: np.ndarray, rot: np.ndarray | None = None) -> Clip:
+    """Break channel values ``(F, C)`` (file units and the skeleton's angle unit) into a :class:`Clip`. ``rot``:
+    their local joint rotations ``(F, joints, 3, 3)`` (:func:`~mocapz.model.kinematics.local_rotations`), when
+    the caller has them."""
+    rot = local_rotations(skeleton, channels) if rot is None else rot
     trans = local_translations(skeleton, channels)
     _, other = position_columns(skeleton)
     return Clip(rot, trans, trans[:, 0].copy(), rot[:, 0].copy(), channels[:, other].copy())

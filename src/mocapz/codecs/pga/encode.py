@@ -20,7 +20,7 @@ from mocapz.codecs.pga.packing import once, pack_streams
 from mocapz.codecs.pga.params import PGASettings
 from mocapz.codecs.pga.quantise import model_matrices, quantise_model
 from mocapz.format.entropy import encode_int_matrix
-from mocapz.model.kinematics import forward_positions
+from mocapz.model.kinematics import forward_positions, local_rotations
 from mocapz.model.motion import Motion
 
 
@@ -48,10 +48,11 @@ def prepare(motion: Motion, effectors: list[int] | None = None, outliers: list[i
     found from the tree when not given), the clip's streams and the full PGA model of its kept frames."""
     sk = motion.skeleton
     check_skeleton(sk)
-    out = detect_outliers(motion) if outliers is None else outliers
+    every = local_rotations(sk, motion.channels) if outliers is None else None  # each frame's on its own
+    out = detect_outliers(motion, local=every) if outliers is None else outliers
     kept = kept_frames(motion.n_frames, out)
     ch = motion.channels[kept]
-    clip = analyse(sk, ch)
+    clip = analyse(sk, ch, None if every is None else every[kept])
     eff = effector_points(sk, effectors)
     pos = forward_positions(sk, ch)
     inner = inner_joints(sk)

@@ -7,7 +7,6 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from mocapz.codecs.pga import so3
 from mocapz.codecs.pga.joints import inner_joints
 from mocapz.errors import FormatError
 from mocapz.format.entropy import pack_uint64, unpack_uint64, unzigzag, zigzag
@@ -15,7 +14,7 @@ from mocapz.model.kinematics import local_rotations
 from mocapz.model.motion import Motion
 
 
-def detect_outliers(motion: Motion, factor: float = 15.0) -> list[int]:
+def detect_outliers(motion: Motion, factor: float = 15.0, local: np.ndarray | None = None) -> list[int]:
     """Frames that are isolated spikes in pose space (e.g. the T-pose cgspeed files add as frame 1).
 
     With ``step(a, b)`` the geodesic distance (radians) between the inner-joint poses of frames ``a`` and
@@ -23,19 +22,16 @@ def detect_outliers(motion: Motion, factor: float = 15.0) -> list[int]:
     ``step(t-1, t)`` and ``step(t, t+1)`` both exceed ``factor * s`` while ``step(t-1, t+1)`` does not (its
     neighbours agree with each other: a spike, not a fast move); the first (last) frame when its step to
     the next (previous) exceeds ``factor * s`` and that frame's own next step is ordinary (under ``3 s``).
+    ``local``: the clip's local joint rotations ``(frames, joints, 3, 3)``, when the caller has them.
     """
     if motion.n_frames < 8:
         return []
     sk = motion.skeleton
+    rot = local_rotations(sk, motion.channels) if local is None else local
     inner = inner_joints(sk)
-    rot = local_rotations(sk, motion.channels)[:, inner]
     n = len(rot)
-
-    def dist(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-        return np.linalg.norm(so3.log(np.swapaxes(a, -1, -2) @ b).reshape(len(a), -1), axis=1)
-
-    step = dist(rot[:-1], rot[1:])
-    skip = dist(rot[:-2], rot[2:])
+    step = _steps(rot, 1, inner)
+    skip = _steps(rot, 2, inner)
     s = max(float(np.median(step)), 1e-9)
     out = []
     if step[0] > factor * s and step[1] < 3 * s:
@@ -46,6 +42,17 @@ def detect_outliers(motion: Motion, factor: float = 15.0) -> list[int]:
     if step[-1] > factor * s and step[-2] < 3 * s:
         out.append(n - 1)
     return sorted(set(out))
+
+
+def _steps(rot: np.ndarray, lag: int, joints: np.ndarray) -> np.ndarray:
+    """Geodesic distance (radians) ``(frames - lag,)`` between the poses of the ``joints`` in ``rot`` ``(frames,
+    all joints, 3, 3)`` of frames ``lag`` apart: the root of the summed squared angles of the joints' relative
+    rotations ``a.T @ b``, each ``acos((trace - 1) / 2)`` (the trace of ``a.T @ b`` is the sum of ``a * b``: no
+    product made, and no copy of the joints' rotations)."""
+    trace = np.einsum("fjab,fjab->fj", rot[:-lag], rot[lag:])[:, joints]
+    cos = np.clip((trace - 1.0) / 2.0, -1.0, 1.0)
+    angle = np.arccos(cos)
+    return np.sqrt((angle * angle).sum(axis=1))
 
 
 def kept_frames(frames: int, outliers: Sequence[int] | np.ndarray) -> np.ndarray:
