@@ -35,6 +35,7 @@ MODULES = {
     "range": "mocapz.format.rangekernels",
     "lossless": "mocapz.codecs.lossless._kernels",
     "ik": "mocapz.codecs.pga.ikkernels",
+    "so3": "mocapz.codecs.pga.so3kernels",
     "lift": "mocapz.codecs.correction.liftkernels",
     "round": "mocapz.codecs.correction.roundkernels",
     "chain": "mocapz.codecs.correction.chainkernels",
@@ -100,6 +101,8 @@ SIGNATURES: tuple[tuple[str, str, str], ...] = (
     ("ik", "euler_channels",
      "i8(f8[:, ::1], f8[:, ::1], f8[:, :, ::1], f8[:, :, ::1], i8[::1], i8[:, ::1], f8[::1], i8[:, ::1], "
      "f8[:, :, ::1], b1[::1], f8, f8[:, ::1])"),
+    ("so3", "products_t",
+     "none(f8[:, :, ::1], Array(f8, 4, 'A', readonly=True), i8[::1], i8, i8, f8[:, :, :, ::1])"),
     ("lift", "details", "none(f8[:, ::1], f8[:, ::1], f8[:, ::1], i8[:, ::1], i8, f8[::1], f8, i8, f8[:, ::1])"),
     ("lift", "decode_details",
      "none(i8[:, ::1], f8[::1], f8[::1], i8[:, ::1], i8[::1], f8[:, ::1], i8, f8[::1], f8, i8, i8, f8, f8[:, ::1])"),

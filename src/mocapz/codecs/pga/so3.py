@@ -2,12 +2,17 @@
 
 Rotation vectors ``w`` have shape ``(..., 3)`` (radians, axis * angle); matrices ``(..., 3, 3)``.
 scipy's ``Rotation`` is used for Euler conversions elsewhere; these hot paths (exp, log, right
-Jacobian, intrinsic mean) are written here because they run inside the IK loop.
+Jacobian, intrinsic mean) are written here because they run inside the IK loop. :func:`log_between`'s products
+are :mod:`.so3kernels`' where the kernels are compiled ahead of time (the same bits as NumPy's).
 """
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
+
+from mocapz import _jit, aot
 
 _EPS = 1e-8
 MEAN_ROWS = 512  # samples per step of the Karcher mean's average (its temporaries: peak memory)
@@ -106,10 +111,27 @@ def log_between(mean: np.ndarray, rotations: np.ndarray, columns: np.ndarray | N
     mt = np.swapaxes(mean, -1, -2)[None]
     n = rotations.shape[0]
     out = np.empty((n, *mt.shape[1:-1]))
+    kern = _products_kernel(mean, rotations)
+    if kern is not None:
+        cols = np.arange(mean.shape[0], dtype=np.int64) if columns is None else np.asarray(columns, dtype=np.int64)
+        m = np.ascontiguousarray(mean, dtype=np.float64)
     for a in range(0, n, MEAN_ROWS):
-        part = rotations[a:a + MEAN_ROWS] if columns is None else rotations[a:a + MEAN_ROWS, columns]
-        out[a:a + MEAN_ROWS] = log(mt @ part)
+        if kern is not None:
+            prod = np.empty((min(n, a + MEAN_ROWS) - a, *mean.shape))
+            kern.products_t(m, rotations, cols, a, a + len(prod), prod)
+        else:
+            prod = mt @ (rotations[a:a + MEAN_ROWS] if columns is None else rotations[a:a + MEAN_ROWS, columns])
+        out[a:a + MEAN_ROWS] = log(prod)
     return out
+
+
+def _products_kernel(mean: np.ndarray, rotations: np.ndarray) -> Any:
+    """:mod:`.so3kernels` compiled ahead of time, where they are and take these arrays (``mean`` ``(joints, 3,
+    3)``, ``rotations`` ``(samples, joints, 3, 3)`` float64, any strides), else None (NumPy's products, the same
+    bits: no numba loaded for them)."""
+    if not _jit.enabled() or mean.ndim != 3 or rotations.ndim != 4 or rotations.dtype != np.float64:
+        return None
+    return aot.kernels("so3")
 
 
 def _chordal_mean(r: np.ndarray) -> np.ndarray:
