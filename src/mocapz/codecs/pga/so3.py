@@ -113,7 +113,8 @@ def log_between(mean: np.ndarray, rotations: np.ndarray, columns: np.ndarray | N
     out = np.empty((n, *mt.shape[1:-1]))
     kern = _products_kernel(mean, rotations)
     if kern is not None:
-        cols = np.arange(mean.shape[0], dtype=np.int64) if columns is None else np.asarray(columns, dtype=np.int64)
+        cols = np.arange(mean.shape[0], dtype=np.int64) if columns is None \
+            else np.ascontiguousarray(columns, dtype=np.int64)
         m = np.ascontiguousarray(mean, dtype=np.float64)
     for a in range(0, n, MEAN_ROWS):
         if kern is not None:
